@@ -1,0 +1,66 @@
+// Trajectory error metrics: ATE after SE(3) alignment, RPE, KITTI-devkit relative errors.
+#pragma once
+
+#include <rasterslam/io/trajectory_io.h>
+
+#include <string>
+#include <vector>
+
+namespace rasterslam::eval
+{
+using io::Trajectory;
+
+/** Pairs of indices (gt, est) of poses that describe the same instant. */
+struct Association
+{
+	std::vector<std::size_t> gt, est;
+};
+
+/** By index when `byIndex` (both trajectories must then have the same length, else throws),
+ *  otherwise by nearest time stamp within maxDt seconds. */
+Association associate(
+	const Trajectory& gt, const Trajectory& est, bool byIndex, double maxDt = 0.02);
+
+struct AteResult
+{
+	std::size_t n = 0;
+	double rmse_m = 0, mean_m = 0, median_m = 0, max_m = 0;
+	/** The rigid alignment applied to the estimate (Umeyama, no scale). */
+	Eigen::Isometry3d T_gt_est = Eigen::Isometry3d::Identity();
+};
+/** Absolute trajectory error of associated poses after the best SE(3) alignment. */
+AteResult computeAte(const Trajectory& gt, const Trajectory& est, const Association& a);
+
+struct RpeResult
+{
+	std::size_t n = 0;  //!< number of consecutive pairs
+	double trans_rmse_m = 0, trans_mean_m = 0;
+	double rot_rmse_deg = 0, rot_mean_deg = 0;
+};
+/** Relative pose error between consecutive associated poses (per frame). */
+RpeResult computeRpe(const Trajectory& gt, const Trajectory& est, const Association& a);
+
+struct KittiSegmentError
+{
+	double length_m = 0;
+	std::size_t count = 0;
+	double t_err_pct = 0, r_err_deg_per_m = 0;
+};
+struct KittiRelativeResult
+{
+	std::size_t count = 0;  //!< number of segments over all lengths
+	double t_err_pct = 0;  //!< mean translation error, % of segment length
+	double r_err_deg_per_m = 0;  //!< mean rotation error, degrees per metre
+	std::vector<KittiSegmentError> perLength;
+};
+/** The KITTI odometry devkit's metric: for every first frame (every `step` frames) and every
+ *  segment length, the error of the relative motion to the first frame whose path distance
+ *  from it reaches the length, divided by the length; averaged over all segments. */
+KittiRelativeResult computeKittiRelative(
+	const Trajectory& gt, const Trajectory& est, const Association& a,
+	const std::vector<double>& lengths_m, std::size_t step = 10);
+
+/** "10:80:10" -> {10,20,...,80}; throws std::invalid_argument on a malformed spec. */
+std::vector<double> parseSegmentSpec(const std::string& spec);
+
+}  // namespace rasterslam::eval
