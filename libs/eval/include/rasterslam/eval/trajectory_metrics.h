@@ -60,7 +60,20 @@ KittiRelativeResult computeKittiRelative(
 	const Trajectory& gt, const Trajectory& est, const Association& a,
 	const std::vector<double>& lengths_m, std::size_t step = 10);
 
-/** "10:80:10" -> {10,20,...,80}; throws std::invalid_argument on a malformed spec. */
+/** The devkit's trajectoryDistances over the associated ground-truth poses: element k is the
+ *  path length from the first associated pose to the k-th (size = number of pairs). */
+std::vector<double> trajectoryDistances(const Trajectory& gt, const Association& a);
+
+/** Inverse through the full 3x3 inverse, not R^T, as the devkit's Matrix::inv: KITTI's 7-digit
+ *  rotations are orthonormal only to ~1e-7, which R^T turns into visible rotation errors. */
+Eigen::Isometry3d fullInverse(const Eigen::Isometry3d& T);
+
+/** Rotation angle of a pose in radians, by the devkit's formula
+ *  acos(max(min(0.5 * (trace(R) - 1), 1), -1)). */
+double rotationAngle(const Eigen::Isometry3d& T);
+
+/** "10:80:10" -> {10,20,...,80} (start:end:step, end included); a comma list "10,20,40" or
+ *  one number are accepted too. Throws std::invalid_argument on a malformed spec. */
 std::vector<double> parseSegmentSpec(const std::string& spec);
 
 }  // namespace rasterslam::eval

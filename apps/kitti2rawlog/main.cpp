@@ -1,0 +1,227 @@
+// kitti2rawlog: converts a KITTI odometry sequence (velodyne/*.bin, poses, calib, times) into
+// an MRPT rawlog with one CObservationPointCloud (XYZI) a scan and its ground truth.
+#include <mrpt/maps/CPointsMapXYZI.h>
+#include <mrpt/maps/registerAllClasses.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/obs/registerAllClasses.h>
+#include <rasterslam/io/kitti.h>
+#include <rasterslam/io/rawlog_writer.h>
+#include <rasterslam/io/trajectory_io.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <string>
+
+namespace fs = std::filesystem;
+using namespace rasterslam;
+
+namespace
+{
+const char* kUsage = R"(kitti2rawlog: convert a KITTI odometry sequence into an MRPT rawlog
+
+usage:
+  kitti2rawlog --velodyne DIR -o OUT.rawlog [--poses FILE --calib FILE] [--times FILE]
+               [--first N] [--last N] [--external] [--compress 0..9]
+  kitti2rawlog --sequence DIR -o OUT.rawlog [...]
+
+  --velodyne DIR   folder of KITTI .bin scans (sorted by name; scan i is line i of the
+                   poses and times files)
+  --sequence DIR   KITTI layout: DIR/velodyne, DIR/times.txt, DIR/calib.txt, and poses
+                   from DIR/poses.txt or DIR/../../poses/<name of DIR>.txt when present
+  --poses FILE     ground truth, KITTI format (cam0 frame); needs --calib
+  --calib FILE     calib.txt; its Tr line turns cam0 poses into Velodyne-frame poses
+  --times FILE     times.txt (seconds); without it scans are 0.1 s apart
+  --first N        first scan to convert (position in the sorted list, default 0)
+  --last N         last scan to convert (inclusive, default: the last)
+  --external       write a small rawlog that references the .bin files (MRPT external
+                   storage, absolute paths) instead of embedding the points
+  --compress L     gzip level 0..9 (0: plain file; default 1)
+  -o, --out FILE   rawlog to write (written to a temporary name, then renamed)
+
+Each scan becomes a CObservationPointCloud (label LIDAR, XYZI, sensorPose identity) and,
+with poses, a CObservationRobotPose (label GROUND_TRUTH) with the same time stamp holding
+the Velodyne-frame pose inv(Tr) * P_i * Tr.
+)";
+
+[[noreturn]] void usageError(const std::string& msg)
+{
+	std::cerr << "kitti2rawlog: " << msg << "\n(see kitti2rawlog --help)\n";
+	std::exit(2);
+}
+
+std::size_t parseIndex(const std::string& opt, const std::string& v)
+{
+	try
+	{
+		std::size_t pos = 0;
+		const long long n = std::stoll(v, &pos);
+		if (pos != v.size() || n < 0) throw std::invalid_argument(v);
+		return static_cast<std::size_t>(n);
+	}
+	catch (const std::exception&)
+	{
+		usageError(opt + " expects a non-negative integer, got '" + v + "'");
+	}
+}
+}  // namespace
+
+int main(int argc, char** argv)
+{
+	std::string velodyne, sequence, out, posesFile, calibFile, timesFile;
+	std::optional<std::size_t> first, last;
+	bool external = false;
+	int compress = 1;
+	for (int i = 1; i < argc; i++)
+	{
+		const std::string a = argv[i];
+		auto value = [&]() -> std::string {
+			if (i + 1 >= argc) usageError(a + " needs a value");
+			return argv[++i];
+		};
+		if (a == "-h" || a == "--help")
+		{
+			std::cout << kUsage;
+			return 0;
+		}
+		else if (a == "--velodyne") velodyne = value();
+		else if (a == "--sequence")
+			sequence = value();
+		else if (a == "-o" || a == "--out")
+			out = value();
+		else if (a == "--poses")
+			posesFile = value();
+		else if (a == "--calib")
+			calibFile = value();
+		else if (a == "--times")
+			timesFile = value();
+		else if (a == "--first")
+			first = parseIndex(a, value());
+		else if (a == "--last")
+			last = parseIndex(a, value());
+		else if (a == "--external")
+			external = true;
+		else if (a == "--compress")
+		{
+			const auto v = value();
+			if (v.size() != 1 || v[0] < '0' || v[0] > '9') usageError("--compress expects 0..9");
+			compress = v[0] - '0';
+		}
+		else
+			usageError("unknown option '" + a + "'");
+	}
+	if (out.empty()) usageError("-o OUT.rawlog is required");
+	if (velodyne.empty() == sequence.empty()) usageError("give exactly one of --velodyne or --sequence");
+	if (!sequence.empty())
+	{
+		velodyne = (fs::path(sequence) / "velodyne").string();
+		auto ifExists = [](const fs::path& p) { return fs::exists(p) ? p.string() : std::string(); };
+		if (timesFile.empty()) timesFile = ifExists(fs::path(sequence) / "times.txt");
+		if (calibFile.empty()) calibFile = ifExists(fs::path(sequence) / "calib.txt");
+		if (posesFile.empty()) posesFile = ifExists(fs::path(sequence) / "poses.txt");
+		if (posesFile.empty())
+		{
+			const auto seqName = fs::path(sequence).lexically_normal().filename().string();
+			posesFile = ifExists(fs::path(sequence) / ".." / ".." / "poses" / (seqName + ".txt"));
+		}
+	}
+	if (!posesFile.empty() && calibFile.empty())
+		usageError("--poses needs --calib: KITTI poses are in the cam0 frame, and Tr turns them "
+				   "into Velodyne-frame poses");
+
+	try
+	{
+		mrpt::obs::registerAllClasses_mrpt_obs();
+		mrpt::maps::registerAllClasses_mrpt_maps();
+		const auto bins = io::listKittiBins(velodyne);
+		const std::size_t i0 = first.value_or(0);
+		const std::size_t i1 = std::min(last.value_or(bins.size() - 1), bins.size() - 1);
+		if (i0 > i1)
+			throw std::runtime_error(
+				"--first " + std::to_string(i0) + " is past the last scan (" +
+				std::to_string(bins.size() - 1) + ") or --last");
+
+		std::vector<double> times;
+		if (!timesFile.empty())
+		{
+			times = io::loadKittiTimes(timesFile);
+			if (times.size() < bins.size())
+				throw std::runtime_error(
+					"times file '" + timesFile + "' has " + std::to_string(times.size()) +
+					" lines for " + std::to_string(bins.size()) + " scans in '" + velodyne + "'");
+		}
+		io::Trajectory gt;
+		if (!posesFile.empty())
+		{
+			gt = io::kittiCameraToVelodyne(
+				io::loadTrajectory(posesFile, io::TrajectoryFormat::Kitti),
+				io::loadKittiCalibTr(calibFile));
+			if (gt.size() < bins.size())
+				throw std::runtime_error(
+					"poses file '" + posesFile + "' has " + std::to_string(gt.size()) +
+					" poses for " + std::to_string(bins.size()) + " scans in '" + velodyne + "'");
+		}
+
+		io::RawlogWriter writer(out, compress);
+		const auto t0 = std::chrono::steady_clock::now();
+		for (std::size_t i = i0; i <= i1; i++)
+		{
+			Scan scan;
+			scan.index = i;
+			scan.stamp = times.empty() ? 0.1 * static_cast<double>(i) : times[i];
+			scan.sensorLabel = "LIDAR";
+			if (!gt.empty())
+			{
+				mrpt::math::CMatrixDouble44 M;
+				for (int r = 0; r < 4; r++)
+					for (int c = 0; c < 4; c++) M(r, c) = gt[i].pose.matrix()(r, c);
+				scan.groundTruth = mrpt::poses::CPose3D::FromHomogeneousMatrix(M);
+			}
+			if (!external)
+			{
+				scan.points = io::loadKittiBin(bins[i]);
+				writer.writeScan(scan);
+			}
+			else
+			{
+				mrpt::obs::CObservationPointCloud obs;
+				obs.timestamp = mrpt::Clock::fromDouble(scan.stamp);
+				obs.sensorLabel = scan.sensorLabel;
+				obs.pointcloud = mrpt::maps::CPointsMapXYZI::Create();
+				obs.setAsExternalStorage(
+					fs::absolute(bins[i]).lexically_normal().string(),
+					mrpt::obs::CObservationPointCloud::ExternalStorageFormat::KittiBinFile);
+				writer.write(obs);
+				if (scan.groundTruth)
+				{
+					mrpt::obs::CObservationRobotPose g;
+					g.timestamp = obs.timestamp;
+					g.sensorLabel = "GROUND_TRUTH";
+					g.pose.mean = *scan.groundTruth;
+					g.pose.cov.setZero();
+					writer.write(g);
+				}
+			}
+			if (isatty(2))
+				std::fprintf(stderr, "\rkitti2rawlog: %zu/%zu scans", i - i0 + 1, i1 - i0 + 1);
+		}
+		writer.close();
+		const double s =
+			std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+		if (isatty(2)) std::fprintf(stderr, "\n");
+		std::printf(
+			"kitti2rawlog: wrote %zu scans%s (%s) to %s in %.1f s\n", i1 - i0 + 1,
+			gt.empty() ? "" : " with ground truth", external ? "external .bin references" : "embedded points",
+			out.c_str(), s);
+	}
+	catch (const std::exception& e)
+	{
+		std::cerr << "kitti2rawlog: error: " << e.what() << "\n";
+		return 1;
+	}
+	return 0;
+}

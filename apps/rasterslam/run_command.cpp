@@ -1,0 +1,314 @@
+// `rasterslam run`: play a rawlog through the configured pipeline and write the outputs.
+#include <mrpt/core/format.h>
+#include <mrpt/system/os.h>
+#include <rasterslam/core/config.h>
+#include <rasterslam/core/engine.h>
+#include <rasterslam/eval/trajectory_metrics.h>
+#include <rasterslam/io/rawlog_source.h>
+#include <rasterslam/io/run_outputs.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+
+#include "cli.h"
+
+namespace fs = std::filesystem;
+using mrpt::containers::yaml;
+
+namespace rasterslam::cli
+{
+namespace
+{
+std::size_t parseIndex(const std::string& opt, const std::string& v)
+{
+	std::size_t pos = 0;
+	long long n = -1;
+	try
+	{
+		n = std::stoll(v, &pos);
+	}
+	catch (const std::exception&)
+	{
+	}
+	if (n < 0 || pos != v.size())
+		usageError(opt + " expects a non-negative integer, got '" + v + "'");
+	return static_cast<std::size_t>(n);
+}
+
+double percentile(std::vector<double> v, double q)
+{
+	if (v.empty()) return 0;
+	std::sort(v.begin(), v.end());
+	const double pos = q * (v.size() - 1);
+	const auto lo = static_cast<std::size_t>(pos);
+	const auto hi = std::min(lo + 1, v.size() - 1);
+	return v[lo] + (pos - lo) * (v[hi] - v[lo]);
+}
+
+/** One line that rewrites itself on a terminal; plain lines every 10% otherwise. */
+class Progress
+{
+   public:
+	explicit Progress(bool quiet) : tty_(isatty(2) == 1), quiet_(quiet) {}
+	void update(const ScanRecord& r, double frac)
+	{
+		++n_;
+		if (quiet_) return;
+		const double el = std::chrono::duration<double>(Clock::now() - t0_).count();
+		const double rate = el > 0 ? n_ / el : 0;
+		const double eta = frac > 0.01 ? el * (1 - frac) / frac : -1;
+		if (tty_)
+		{
+			if (std::chrono::duration<double>(Clock::now() - last_).count() < 0.1 && frac < 1) return;
+			last_ = Clock::now();
+			const int width = 30, filled = frac >= 0 ? static_cast<int>(frac * width) : 0;
+			std::string bar(filled, '=');
+			bar.resize(width, ' ');
+			std::fprintf(
+				stderr, "\r[%s] %3.0f%%  scan %zu  %.1f scans/s  ETA %s   ", bar.c_str(),
+				std::max(0.0, frac) * 100, r.index, rate,
+				eta >= 0 ? mrpt::format("%.0fs", eta).c_str() : "?");
+		}
+		else
+		{
+			const int decile = frac >= 0 ? static_cast<int>(frac * 10) : static_cast<int>(n_ / 100);
+			if (decile == lastDecile_) return;
+			lastDecile_ = decile;
+			std::fprintf(
+				stderr, "[rasterslam] %zu scans (index %zu, %.0f%% of input), %.1f scans/s, ETA %s\n",
+				n_, r.index, std::max(0.0, frac) * 100, rate,
+				eta >= 0 ? mrpt::format("%.0fs", eta).c_str() : "?");
+		}
+	}
+	void done()
+	{
+		if (tty_ && !quiet_ && n_ > 0) std::fprintf(stderr, "\n");
+	}
+
+   private:
+	using Clock = std::chrono::steady_clock;
+	bool tty_, quiet_;
+	std::size_t n_ = 0;
+	int lastDecile_ = -1;
+	Clock::time_point t0_ = Clock::now(), last_{};
+};
+}  // namespace
+
+std::string findDefaultConfig()
+{
+	std::vector<fs::path> dirs;
+	if (const char* env = std::getenv("RASTERSLAM_SHARE_DIR")) dirs.emplace_back(env);
+	std::error_code ec;
+	const auto exe = fs::read_symlink("/proc/self/exe", ec);
+	if (!ec) dirs.push_back(exe.parent_path() / ".." / "share" / "rasterslam");
+	dirs.emplace_back(RASTERSLAM_SOURCE_SHARE_DIR);
+	dirs.emplace_back(RASTERSLAM_INSTALL_SHARE_DIR);
+	for (const auto& d : dirs)
+		if (fs::exists(d / "config" / "default.yaml"))
+			return (d / "config" / "default.yaml").lexically_normal().string();
+	throw std::runtime_error(
+		"no default config found (share/rasterslam/config/default.yaml); give --config");
+}
+
+int runCommand(int argc, char** argv)
+{
+	std::string rawlog, outDir, configPath, sensor;
+	RunOptions opts;
+	bool quiet = false, verbose = false;
+	for (int i = 1; i < argc; i++)
+	{
+		const std::string a = argv[i];
+		auto value = [&]() -> std::string {
+			if (i + 1 >= argc) usageError(a + " needs a value");
+			return argv[++i];
+		};
+		if (a == "--rawlog") rawlog = value();
+		else if (a == "--out")
+			outDir = value();
+		else if (a == "--config")
+			configPath = value();
+		else if (a == "--first")
+			opts.first = parseIndex(a, value());
+		else if (a == "--last")
+			opts.last = parseIndex(a, value());
+		else if (a == "--realtime")
+			opts.realtime = true;
+		else if (a == "--rate")
+		{
+			const auto v = value();
+			char* end = nullptr;
+			opts.rate = std::strtod(v.c_str(), &end);
+			if (end != v.c_str() + v.size() || !(opts.rate > 0))
+				usageError("--rate expects a positive number, got '" + v + "'");
+		}
+		else if (a == "--sensor")
+			sensor = value();
+		else if (a == "--quiet")
+			quiet = true;
+		else if (a == "--verbose")
+			verbose = true;
+		else if (a == "-h" || a == "--help")
+		{
+			std::cout << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
+						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--quiet|--verbose]\n"
+						 "(rasterslam --help explains every option)\n";
+			return 0;
+		}
+		else
+			usageError("run: unknown option '" + a + "'");
+	}
+	if (rawlog.empty()) usageError("run: --rawlog FILE is required");
+	if (outDir.empty()) usageError("run: --out DIR is required");
+	if (opts.first && opts.last && *opts.first > *opts.last) usageError("run: --first is after --last");
+
+	const auto logLevel = verbose ? mrpt::system::LVL_DEBUG
+								  : (quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
+	RunResult res;
+	yaml info = yaml::Map();
+	std::unique_ptr<Engine> engine;
+	std::unique_ptr<io::RawlogSource> source;
+	try
+	{
+		io::ensureWritableDir(outDir);
+		if (configPath.empty()) configPath = findDefaultConfig();
+		const yaml cfg = loadYamlFile(configPath);
+		engine = std::make_unique<Engine>(cfg, configPath);
+		engine->setMinLoggingLevel(logLevel);
+		io::RawlogSourceOptions so;
+		so.sensorLabel = sensor;
+		source = std::make_unique<io::RawlogSource>(rawlog, so);
+	}
+	catch (const std::exception& e)
+	{
+		std::cerr << "rasterslam: error: " << e.what() << "\n";
+		return kExitError;
+	}
+	if (!quiet)
+	{
+		std::fprintf(stderr, "[rasterslam] config %s\n", configPath.c_str());
+		std::stringstream ss;
+		engine->configInForce().printAsYAML(ss);
+		if (verbose) std::fprintf(stderr, "%s", ss.str().c_str());
+	}
+
+	Progress progress(quiet);
+	opts.onScan = [&](const ScanRecord& r, double frac) { progress.update(r, frac); };
+	std::string runError;
+	try
+	{
+		res = engine->run(*source, opts);
+	}
+	catch (const std::exception& e)
+	{
+		runError = e.what();
+	}
+	progress.done();
+	if (!res.error.empty()) runError = res.error;
+
+	// Summary figures.
+	std::vector<double> total, odo, ras, rd;
+	for (const auto& r : res.scans)
+	{
+		total.push_back(r.ms.total);
+		odo.push_back(r.ms.odometry);
+		ras.push_back(r.ms.rasterize);
+		rd.push_back(r.ms.read);
+	}
+	double pathLen = 0;
+	for (std::size_t i = 1; i < res.poses.size(); i++)
+		pathLen += (res.poses[i].translation() - res.poses[i - 1].translation()).norm();
+
+	info["rasterslam_version"] = std::string(RASTERSLAM_VERSION);
+	info["mrpt_version"] = mrpt::system::MRPT_getVersion();
+	yaml input = yaml::Map();
+	input["rawlog"] = fs::absolute(rawlog).string();
+	input["first"] = opts.first ? static_cast<int>(*opts.first) : -1;
+	input["last"] = opts.last ? static_cast<int>(*opts.last) : -1;
+	input["sensor"] = sensor;
+	input["realtime"] = opts.realtime;
+	input["rate"] = opts.rate;
+	input["config"] = fs::absolute(configPath).string();
+	info["input"] = input;
+	info["config"] = engine->configInForce();
+	yaml counts = yaml::Map();
+	counts["scans"] = static_cast<uint64_t>(res.scans.size());
+	counts["keyframes"] = static_cast<uint64_t>(res.keyframes);
+	counts["lost"] = static_cast<uint64_t>(res.lost);
+	counts["late"] = static_cast<uint64_t>(res.late);
+	counts["loop_edges"] = static_cast<uint64_t>(res.loopEdges);
+	counts["skipped_bad_scans"] = static_cast<uint64_t>(res.skippedBadScans);
+	info["counts"] = counts;
+	yaml summary = yaml::Map();
+	summary["wall_s"] = res.wall_s;
+	summary["ms_per_scan_median"] = percentile(total, 0.5);
+	summary["ms_per_scan_p95"] = percentile(total, 0.95);
+	summary["read_ms_median"] = percentile(rd, 0.5);
+	summary["rasterize_ms_median"] = percentile(ras, 0.5);
+	summary["odometry_ms_median"] = percentile(odo, 0.5);
+	summary["peak_rss_mb"] = peakRssMb();
+	summary["path_length_m"] = pathLen;
+	std::optional<double> ate;
+	if (!res.scans.empty() &&
+		std::all_of(res.scans.begin(), res.scans.end(), [](const auto& r) { return r.groundTruth.has_value(); }))
+	{
+		io::Trajectory gt, est;
+		for (std::size_t i = 0; i < res.scans.size(); i++)
+		{
+			gt.push_back({res.scans[i].stamp, io::toIsometry(*res.scans[i].groundTruth)});
+			est.push_back({res.scans[i].stamp, io::toIsometry(res.poses[i])});
+		}
+		const auto a = eval::associate(gt, est, true);
+		ate = eval::computeAte(gt, est, a).rmse_m;
+		summary["ate_rmse_m"] = *ate;
+	}
+	if (!res.stopReason.empty()) summary["stopped_early"] = res.stopReason;
+	if (!runError.empty()) summary["error"] = runError;
+	info["summary"] = summary;
+
+	bool wrote = false;
+	try
+	{
+		if (!res.scans.empty())
+		{
+			io::writeRunOutputs(outDir, res, info);
+			wrote = true;
+		}
+	}
+	catch (const std::exception& e)
+	{
+		std::cerr << "rasterslam: error writing outputs: " << e.what() << "\n";
+		return kExitError;
+	}
+
+	std::printf(
+		"rasterslam: %zu scans, %zu keyframes, %zu lost%s in %.1f s: %.1f ms/scan median, "
+		"%.1f p95 (%.1f scans/s), peak memory %.0f MB\n",
+		res.scans.size(), res.keyframes, res.lost,
+		opts.realtime ? mrpt::format(", %zu late", res.late).c_str() : "", res.wall_s,
+		percentile(total, 0.5), percentile(total, 0.95),
+		res.wall_s > 0 ? res.scans.size() / res.wall_s : 0.0, peakRssMb());
+	if (ate) std::printf("rasterslam: ATE against the rawlog's ground truth: %.3f m RMSE over %.1f m\n", *ate, pathLen);
+	if (!res.stopReason.empty()) std::fprintf(stderr, "rasterslam: warning: input stopped early: %s\n", res.stopReason.c_str());
+	if (wrote) std::printf("rasterslam: outputs in %s\n", fs::absolute(outDir).lexically_normal().c_str());
+	if (!runError.empty())
+	{
+		std::cerr << "rasterslam: error: " << runError << "\n";
+		return kExitError;
+	}
+	if (res.scans.empty())
+	{
+		std::cerr << "rasterslam: error: " << rawlog << ": no 3D scans were read (CObservationPointCloud, "
+					 "CObservationVelodyneScan, CObservationRotatingScan or CObservation3DRangeScan"
+				  << (sensor.empty() ? "" : " with label '" + sensor + "'") << ")\n";
+		return kExitError;
+	}
+	// A damaged input processed up to the damage is still a failed run for scripts.
+	return res.stopReason.empty() ? 0 : kExitError;
+}
+
+}  // namespace rasterslam::cli

@@ -1,0 +1,60 @@
+// Configuration: strict, typed access to YAML parameters.
+#pragma once
+
+#include <mrpt/containers/yaml.h>
+
+#include <optional>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rasterslam
+{
+/** A problem with a configuration file or key: the message names the file/key and what was
+ *  expected. */
+class ConfigError : public std::runtime_error
+{
+   public:
+	using std::runtime_error::runtime_error;
+};
+
+/** Reads a YAML file whose root must be a map; throws ConfigError naming the file. */
+mrpt::containers::yaml loadYamlFile(const std::string& path);
+
+/** Typed, strict reader of one parameter block (e.g. `odometry.params`).
+ *  Every key read is recorded with the value in force; finish() throws on keys that were
+ *  never read (typos do not pass silently). Conversions are strict: "2.5" is not an int,
+ *  "abc" is not a double, and the message names `context.key`, the value and the type. */
+class ParamReader
+{
+   public:
+	/** `node` may be null/empty (all defaults) or a map. `source` names the file. */
+	ParamReader(const mrpt::containers::yaml& node, std::string context, std::string source = "");
+
+	double getDouble(const std::string& key, double def);
+	int getInt(const std::string& key, int def);
+	bool getBool(const std::string& key, bool def);
+	std::string getString(const std::string& key, const std::string& def);
+	/** A string that must be one of `allowed`. */
+	std::string getChoice(
+		const std::string& key, const std::string& def, const std::vector<std::string>& allowed);
+	std::vector<double> getDoubles(const std::string& key, const std::vector<double>& def);
+
+	/** Throws ConfigError listing keys present in the node that were never read. */
+	void finish() const;
+	/** Every parameter with the value in force (defaults included). */
+	const mrpt::containers::yaml& inForce() const { return inForce_; }
+	const std::string& context() const { return context_; }
+
+   private:
+	std::optional<std::string> scalar(const std::string& key) const;
+	[[noreturn]] void fail(const std::string& key, const std::string& what) const;
+
+	mrpt::containers::yaml node_;
+	std::string context_, source_;
+	std::set<std::string> used_;
+	mrpt::containers::yaml inForce_ = mrpt::containers::yaml::Map();
+};
+
+}  // namespace rasterslam

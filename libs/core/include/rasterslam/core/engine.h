@@ -1,0 +1,100 @@
+// The graph-SLAM engine: runs the configured plugins over a scan source and owns the pose graph.
+#pragma once
+
+#include <mrpt/graphs/CNetworkOfPoses.h>
+#include <mrpt/system/COutputLogger.h>
+#include <rasterslam/core/plugin.h>
+#include <rasterslam/core/scan_source.h>
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rasterslam
+{
+/** Milliseconds spent in each stage for one scan. */
+struct StageTimes
+{
+	double read = 0, rasterize = 0, odometry = 0, mapping = 0, loop = 0, total = 0;
+};
+
+/** What the engine knows of every input scan. */
+struct ScanRecord
+{
+	std::size_t index = 0;
+	double stamp = 0;
+	std::size_t numPoints = 0;
+	TrackingStatus status = TrackingStatus::Initializing;
+	std::size_t inliers = 0;
+	bool keyframe = false;
+	bool late = false;  //!< --realtime: started after its due time
+	mrpt::graphs::TNodeID kfNode = 0;  //!< keyframe the scan is attached to
+	mrpt::poses::CPose3D T_kf_scan;  //!< its pose in the frame of that keyframe
+	StageTimes ms;
+	std::optional<mrpt::poses::CPose3D> groundTruth;
+};
+
+struct RunOptions
+{
+	/** Only scans with first <= index <= last (input indices, 0-based). */
+	std::optional<std::size_t> first, last;
+	/** Play scans at their time stamps (scaled by `rate`) instead of as fast as possible. */
+	bool realtime = false;
+	double rate = 1.0;
+	/** Called after every processed scan. */
+	std::function<void(const ScanRecord&, double progress)> onScan;
+};
+
+struct RunResult
+{
+	std::vector<ScanRecord> scans;
+	/** Pose of every processed scan in the map frame (keyframe pose + T_kf_scan). */
+	std::vector<mrpt::poses::CPose3D> poses;
+	mrpt::graphs::CNetworkOfPoses3DInf graph;
+	std::size_t keyframes = 0, lost = 0, late = 0, loopEdges = 0, skippedBadScans = 0;
+	OptimizerResult optimizer;
+	/** Empty if the input ended normally; else where and why it stopped early. */
+	std::string stopReason;
+	/** Non-empty when the run stopped on bad input (outputs are still valid up to there). */
+	std::string error;
+	double wall_s = 0;
+};
+
+/** Top-level config sections: plugins, rasterizer, odometry, map_manager, loop_detector,
+ *  optimizer, engine. Each role section is {class: ns::Name, params: {...}}; odometry is
+ *  required, the others are optional. Unknown sections or keys throw ConfigError. */
+class Engine : public mrpt::system::COutputLogger
+{
+   public:
+	Engine(const mrpt::containers::yaml& config, const std::string& configSource);
+
+	RunResult run(ScanSource& source, const RunOptions& opts);
+
+	/** The whole configuration with every parameter in force (defaults filled in). */
+	const mrpt::containers::yaml& configInForce() const { return inForce_; }
+
+   private:
+	Plugin::Ptr makeRole(
+		const mrpt::containers::yaml& cfg, const std::string& section,
+		const mrpt::rtti::TRuntimeClassId* role, bool required);
+
+	std::string source_;
+	mrpt::containers::yaml inForce_ = mrpt::containers::yaml::Map();
+	Rasterizer::Ptr rasterizer_;
+	Odometry::Ptr odometry_;
+	MapManager::Ptr mapManager_;
+	LoopDetector::Ptr loopDetector_;
+	Optimizer::Ptr optimizer_;
+	// engine parameters
+	bool skipBadScans_ = false;
+	int minPoints_ = 100;
+	bool optimizeAtEnd_ = true;
+};
+
+/** Resident set size high-water mark of this process, MB (from /proc/self/status). */
+double peakRssMb();
+
+std::string rasterslamVersion();
+
+}  // namespace rasterslam

@@ -1,0 +1,143 @@
+// Plugin roles. Each role is an abstract MRPT RTTI class; a plugin library derives from one,
+// registers the class when it is loaded, and the engine creates it by name from the config.
+#pragma once
+
+#include <mrpt/graphs/CNetworkOfPoses.h>
+#include <mrpt/img/CImage.h>
+#include <mrpt/math/CMatrixFixed.h>
+#include <mrpt/rtti/CObject.h>
+#include <mrpt/system/COutputLogger.h>
+#include <rasterslam/core/config.h>
+#include <rasterslam/core/types.h>
+
+#include <string>
+#include <vector>
+
+namespace rasterslam
+{
+/** Base of every plugin. initialize() reads the parameter block strictly (unknown keys and
+ *  wrong types throw ConfigError) through the plugin's own initializeImpl(). */
+class Plugin : public mrpt::rtti::CObject, public mrpt::system::COutputLogger
+{
+	DEFINE_VIRTUAL_MRPT_OBJECT(Plugin)
+
+   public:
+	/** Role name as it appears in the config ("odometry", "rasterizer", ...). */
+	virtual std::string role() const = 0;
+
+	/** `params` is the role's `params:` map (may be null for all defaults); `source` names
+	 *  the config file for error messages. Not virtual: plugins implement initializeImpl. */
+	void initialize(const mrpt::containers::yaml& params, const std::string& source = "");
+	/** Parameters in force after initialize(), defaults included. */
+	const mrpt::containers::yaml& paramsInForce() const { return paramsInForce_; }
+
+   protected:
+	virtual void initializeImpl(ParamReader& params) = 0;
+
+   private:
+	mrpt::containers::yaml paramsInForce_ = mrpt::containers::yaml::Map();
+};
+
+/** An image made from a scan, with the 3D point behind each pixel for back-projection. */
+struct RasterFrame
+{
+	mrpt::img::CImage image;  //!< 8-bit greyscale
+	/** Row-major, one entry a pixel: index into Scan::points, or -1 for an empty pixel. */
+	std::vector<int32_t> pixelToPoint;
+};
+
+class Rasterizer : public Plugin
+{
+	DEFINE_VIRTUAL_MRPT_OBJECT(Rasterizer)
+   public:
+	std::string role() const override { return "rasterizer"; }
+	virtual void rasterize(const Scan& scan, RasterFrame& out) = 0;
+};
+
+enum class TrackingStatus : uint8_t
+{
+	Initializing,  //!< first scan: nothing to compare against yet
+	Ok,
+	Lost  //!< no reliable estimate; the motion is the prior and must not be trusted
+};
+const char* toString(TrackingStatus s);
+
+struct OdometryResult
+{
+	TrackingStatus status = TrackingStatus::Initializing;
+	/** Motion of the vehicle from the previous scan to this one (pose of the current scan
+	 *  in the frame of the previous one). */
+	mrpt::poses::CPose3D T_prev_curr;
+	/** Whether this scan should become a keyframe (a node of the pose graph). */
+	bool keyframe = false;
+	std::size_t inliers = 0;
+	/** Information matrix of T_prev_curr, order (x y z yaw pitch roll) as MRPT's 3D graphs. */
+	mrpt::math::CMatrixDouble66 information = mrpt::math::CMatrixDouble66::Identity();
+	std::string message;  //!< why, when not Ok
+};
+
+class Odometry : public Plugin
+{
+	DEFINE_VIRTUAL_MRPT_OBJECT(Odometry)
+   public:
+	std::string role() const override { return "odometry"; }
+	/** `raster` is null when no rasterizer is configured. */
+	virtual OdometryResult process(const Scan& scan, const RasterFrame* raster) = 0;
+};
+
+/** A keyframe as the engine hands it to mapping and loop closing. */
+struct KeyframeInfo
+{
+	mrpt::graphs::TNodeID node = 0;
+	std::size_t scanIndex = 0;
+	double stamp = 0;
+	mrpt::poses::CPose3D pose;  //!< current estimate in the map frame
+};
+
+class MapManager : public Plugin
+{
+	DEFINE_VIRTUAL_MRPT_OBJECT(MapManager)
+   public:
+	std::string role() const override { return "map_manager"; }
+	virtual void addKeyframe(const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) = 0;
+	/** Called once at the end of a run: finish what is open. */
+	virtual void finish() {}
+};
+
+/** A constraint found by a loop detector: pose of `to` in the frame of `from`. */
+struct LoopConstraint
+{
+	mrpt::graphs::TNodeID from = 0, to = 0;
+	mrpt::poses::CPose3D T_from_to;
+	mrpt::math::CMatrixDouble66 information = mrpt::math::CMatrixDouble66::Identity();
+	double score = 0;
+	std::size_t inliers = 0;
+};
+
+class LoopDetector : public Plugin
+{
+	DEFINE_VIRTUAL_MRPT_OBJECT(LoopDetector)
+   public:
+	std::string role() const override { return "loop_detector"; }
+	virtual std::vector<LoopConstraint> detect(
+		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) = 0;
+};
+
+struct OptimizerResult
+{
+	bool ran = false;
+	std::size_t iterations = 0;
+	double initialError = 0, finalError = 0;
+	double time_ms = 0;
+};
+
+class Optimizer : public Plugin
+{
+	DEFINE_VIRTUAL_MRPT_OBJECT(Optimizer)
+   public:
+	std::string role() const override { return "optimizer"; }
+	/** Optimizes the node poses of `graph` in place; the root node stays fixed. */
+	virtual OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph) = 0;
+};
+
+}  // namespace rasterslam

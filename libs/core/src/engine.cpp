@@ -1,0 +1,275 @@
+#include <Eigen/Dense>
+#include <rasterslam/core/engine.h>
+#include <rasterslam/core/plugin_loader.h>
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <thread>
+
+namespace rasterslam
+{
+using mrpt::containers::yaml;
+using Clock = std::chrono::steady_clock;
+
+namespace
+{
+double msSince(Clock::time_point t0)
+{
+	return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+const std::vector<std::string> kSections = {"plugins",		 "rasterizer", "odometry",
+											"map_manager",	 "loop_detector", "optimizer",
+											"engine"};
+}  // namespace
+
+std::string rasterslamVersion() { return RASTERSLAM_VERSION; }
+
+double peakRssMb()
+{
+	std::ifstream f("/proc/self/status");
+	std::string line;
+	while (std::getline(f, line))
+		if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+	return -1;
+}
+
+Plugin::Ptr Engine::makeRole(
+	const yaml& cfg, const std::string& section, const mrpt::rtti::TRuntimeClassId* role,
+	bool required)
+{
+	if (!cfg.has(section) || cfg[section].isNullNode())
+	{
+		if (required)
+			throw ConfigError(source_ + ": section '" + section + "' is required (class: ...)");
+		return {};
+	}
+	const yaml& s = cfg[section];
+	if (!s.isMap())
+		throw ConfigError(source_ + ": section '" + section + "' must be a map {class, params}");
+	for (const auto& kv : s.asMap())
+	{
+		const auto k = kv.first.as<std::string>();
+		if (k != "class" && k != "params")
+			throw ConfigError(
+				source_ + ": unknown key '" + section + "." + k + "' (expected class, params)");
+	}
+	if (!s.has("class") || !s["class"].isScalar())
+		throw ConfigError(source_ + ": key '" + section + ".class' is required (a class name)");
+	const auto className = s["class"].as<std::string>();
+	Plugin::Ptr p;
+	try
+	{
+		p = PluginLoader::instance().create(className, role);
+	}
+	catch (const std::exception& e)
+	{
+		throw ConfigError(source_ + ": key '" + section + ".class': " + e.what());
+	}
+	p->setMinLoggingLevel(getMinLoggingLevel());
+	p->setLoggerName(section);
+	p->initialize(s.has("params") ? s["params"] : yaml(), source_);
+	yaml out = yaml::Map();
+	out["class"] = className;
+	out["params"] = p->paramsInForce();
+	inForce_[section] = out;
+	return p;
+}
+
+Engine::Engine(const yaml& cfg, const std::string& configSource)
+	: mrpt::system::COutputLogger("engine"), source_(configSource)
+{
+	if (!cfg.isMap()) throw ConfigError(source_ + ": expected a map of sections");
+	for (const auto& kv : cfg.asMap())
+	{
+		const auto k = kv.first.as<std::string>();
+		if (std::find(kSections.begin(), kSections.end(), k) == kSections.end())
+		{
+			std::string list;
+			for (const auto& s : kSections) list += (list.empty() ? "" : ", ") + s;
+			throw ConfigError(source_ + ": unknown section '" + k + "' (known: " + list + ")");
+		}
+	}
+	std::vector<std::string> modules;
+	if (cfg.has("plugins") && !cfg["plugins"].isNullNode())
+	{
+		if (!cfg["plugins"].isSequence())
+			throw ConfigError(source_ + ": 'plugins' must be a list of module file names");
+		for (const auto& m : cfg["plugins"].asSequence()) modules.push_back(m.as<std::string>());
+		yaml seq = yaml::Sequence();
+		for (const auto& m : modules) seq.push_back(m);
+		inForce_["plugins"] = seq;
+	}
+	PluginLoader::instance().load(modules);
+
+	{
+		ParamReader p(cfg.has("engine") ? cfg["engine"] : yaml(), "engine", source_);
+		skipBadScans_ = p.getChoice("on_bad_scan", "error", {"error", "skip"}) == "skip";
+		minPoints_ = p.getInt("min_points", 100);
+		optimizeAtEnd_ = p.getBool("optimize_at_end", true);
+		p.finish();
+		if (minPoints_ < 1) throw ConfigError(source_ + ": key 'engine.min_points' must be >= 1");
+		inForce_["engine"] = p.inForce();
+	}
+	rasterizer_ = std::dynamic_pointer_cast<Rasterizer>(
+		makeRole(cfg, "rasterizer", CLASS_ID(Rasterizer), false));
+	odometry_ =
+		std::dynamic_pointer_cast<Odometry>(makeRole(cfg, "odometry", CLASS_ID(Odometry), true));
+	mapManager_ = std::dynamic_pointer_cast<MapManager>(
+		makeRole(cfg, "map_manager", CLASS_ID(MapManager), false));
+	loopDetector_ = std::dynamic_pointer_cast<LoopDetector>(
+		makeRole(cfg, "loop_detector", CLASS_ID(LoopDetector), false));
+	optimizer_ = std::dynamic_pointer_cast<Optimizer>(
+		makeRole(cfg, "optimizer", CLASS_ID(Optimizer), false));
+}
+
+RunResult Engine::run(ScanSource& source, const RunOptions& opts)
+{
+	RunResult res;
+	auto& graph = res.graph;
+	graph.clear();
+	graph.root = 0;
+
+	const auto wall0 = Clock::now();
+	std::optional<double> firstStamp;
+	mrpt::poses::CPose3D currPose;  // odometry pose of the current scan
+	mrpt::poses::CPose3D lastKfPose;
+	mrpt::graphs::TNodeID lastKf = 0;
+	bool haveKf = false;
+	std::size_t stepsSinceKf = 0;
+	RasterFrame raster;
+
+	for (;;)
+	{
+		const auto tRead = Clock::now();
+		std::optional<Scan> scan = source.next();
+		const double readMs = msSince(tRead);
+		if (!scan) break;
+		if (opts.first && scan->index < *opts.first) continue;
+		if (opts.last && scan->index > *opts.last) break;
+
+		// Bad scans: non-finite coordinates or too few points.
+		std::size_t nonFinite = 0;
+		for (const auto& p : scan->points)
+			if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) ++nonFinite;
+		if (nonFinite > 0 || scan->points.size() < static_cast<std::size_t>(minPoints_))
+		{
+			const std::string what = mrpt::format(
+				"%s: scan #%zu (t=%.6f) has %zu points of which %zu are not finite; expected "
+				"at least %d finite points (engine.min_points)",
+				source.name().c_str(), scan->index, scan->stamp, scan->points.size(), nonFinite,
+				minPoints_);
+			if (!skipBadScans_)
+			{
+				res.error = what + "; set engine.on_bad_scan: skip to drop such scans";
+				break;
+			}
+			MRPT_LOG_WARN_STREAM(what << "; skipped");
+			++res.skippedBadScans;
+			continue;
+		}
+
+		if (!firstStamp) firstStamp = scan->stamp;
+		ScanRecord rec;
+		rec.index = scan->index;
+		rec.stamp = scan->stamp;
+		rec.numPoints = scan->points.size();
+		rec.groundTruth = scan->groundTruth;
+		rec.ms.read = readMs;
+
+		if (opts.realtime)
+		{
+			const double due_s = (scan->stamp - *firstStamp) / std::max(opts.rate, 1e-6);
+			const auto due = wall0 + std::chrono::duration_cast<Clock::duration>(
+										 std::chrono::duration<double>(due_s));
+			if (Clock::now() < due) std::this_thread::sleep_until(due);
+			else if (std::chrono::duration<double>(Clock::now() - due).count() > 1e-3)
+			{
+				rec.late = true;
+				++res.late;
+			}
+		}
+		const auto tScan = Clock::now();
+
+		const RasterFrame* rasterPtr = nullptr;
+		if (rasterizer_)
+		{
+			const auto t0 = Clock::now();
+			rasterizer_->rasterize(*scan, raster);
+			rasterPtr = &raster;
+			rec.ms.rasterize = msSince(t0);
+		}
+
+		const auto tOdo = Clock::now();
+		const OdometryResult odo = odometry_->process(*scan, rasterPtr);
+		rec.ms.odometry = msSince(tOdo);
+		rec.status = odo.status;
+		rec.inliers = odo.inliers;
+		if (odo.status == TrackingStatus::Lost) ++res.lost;
+		if (!haveKf) currPose = mrpt::poses::CPose3D();
+		else currPose = currPose + odo.T_prev_curr;
+		++stepsSinceKf;
+
+		if (!haveKf || odo.keyframe)
+		{
+			const mrpt::graphs::TNodeID id = graph.nodes.size();
+			graph.nodes[id] = currPose;
+			if (haveKf)
+			{
+				mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+				e.mean = currPose - lastKfPose;
+				// Information of a chain of n steps is roughly 1/n of one step's.
+				e.cov_inv = odo.information * (1.0 / static_cast<double>(stepsSinceKf));
+				graph.insertEdge(lastKf, id, e);
+			}
+			lastKf = id;
+			lastKfPose = currPose;
+			haveKf = true;
+			stepsSinceKf = 0;
+			rec.keyframe = true;
+			++res.keyframes;
+
+			KeyframeInfo kf{id, scan->index, scan->stamp, currPose};
+			if (mapManager_)
+			{
+				const auto t0 = Clock::now();
+				mapManager_->addKeyframe(kf, *scan, rasterPtr);
+				rec.ms.mapping = msSince(t0);
+			}
+			if (loopDetector_)
+			{
+				const auto t0 = Clock::now();
+				for (const auto& lc : loopDetector_->detect(kf, *scan, rasterPtr))
+				{
+					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+					e.mean = lc.T_from_to;
+					e.cov_inv = lc.information;
+					graph.insertEdge(lc.from, lc.to, e);
+					++res.loopEdges;
+				}
+				rec.ms.loop = msSince(t0);
+			}
+		}
+		rec.kfNode = lastKf;
+		rec.T_kf_scan = currPose - lastKfPose;
+		rec.ms.total = msSince(tScan) + readMs;
+		res.scans.push_back(rec);
+		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
+	}
+	res.stopReason = source.stopReason();
+	if (mapManager_) mapManager_->finish();
+
+	if (optimizer_ && optimizeAtEnd_ && res.loopEdges > 0)
+	{
+		MRPT_LOG_INFO_STREAM(
+			"optimizing the pose graph: " << graph.nodes.size() << " nodes, " << graph.edges.size()
+										  << " edges");
+		res.optimizer = optimizer_->optimize(graph);
+	}
+	res.poses.reserve(res.scans.size());
+	for (const auto& r : res.scans) res.poses.push_back(graph.nodes.at(r.kfNode) + r.T_kf_scan);
+	res.wall_s = std::chrono::duration<double>(Clock::now() - wall0).count();
+	return res;
+}
+
+}  // namespace rasterslam

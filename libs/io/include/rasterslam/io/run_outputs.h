@@ -1,0 +1,28 @@
+// The files a run leaves in its output folder.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <mrpt/containers/yaml.h>
+#include <rasterslam/core/engine.h>
+
+#include <string>
+
+namespace rasterslam::io
+{
+/** Converts an MRPT pose to the Eigen isometry used by the trajectory files. */
+Eigen::Isometry3d toIsometry(const mrpt::poses::CPose3D& p);
+
+/** Writes into `dir` (every file through a temporary name and a rename):
+ *  - trajectory.tum, trajectory.kitti: one pose per processed scan;
+ *  - groundtruth.tum, groundtruth.kitti: when every processed scan had ground truth;
+ *  - timings.csv: per-scan stage times (ms), status, inliers, keyframe flag;
+ *  - pose_graph.graph: the keyframe pose graph in MRPT's text format (opens in MRPT tools);
+ *  - run.yaml: `runInfo` as given (config, versions, input, counts, summary). */
+void writeRunOutputs(
+	const std::string& dir, const RunResult& res, const mrpt::containers::yaml& runInfo);
+
+/** Checks that `dir` exists or can be created and that a file can be written in it; throws
+ *  naming the folder otherwise. */
+void ensureWritableDir(const std::string& dir);
+
+}  // namespace rasterslam::io

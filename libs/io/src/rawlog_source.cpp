@@ -1,0 +1,326 @@
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/maps/CPointsMapXYZI.h>
+#include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/maps/registerAllClasses.h>
+#include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CObservation3DRangeScan.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/obs/CObservationRotatingScan.h>
+#include <mrpt/obs/CObservationVelodyneScan.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/obs/registerAllClasses.h>
+#include <mrpt/serialization/CArchive.h>
+#include <rasterslam/io/rawlog_source.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+namespace rasterslam::io
+{
+namespace
+{
+/** Forwards reads to the file and counts the (uncompressed) bytes consumed, so that a
+ *  damaged object can be reported by its offset and a clean end told from a cut one. */
+class CountingStream : public mrpt::io::CStream
+{
+   public:
+	explicit CountingStream(mrpt::io::CFileGZInputStream& in) : in_(in) {}
+	size_t Read(void* buf, size_t n) override
+	{
+		const size_t r = in_.Read(buf, n);
+		count_ += r;
+		return r;
+	}
+	size_t Write(const void*, size_t) override
+	{
+		throw std::logic_error("CountingStream is read-only");
+	}
+	uint64_t Seek(int64_t, TSeekOrigin) override
+	{
+		throw std::logic_error("CountingStream cannot seek");
+	}
+	uint64_t getTotalBytesCount() const override { return in_.getTotalBytesCount(); }
+	uint64_t getPosition() const override { return count_; }
+	uint64_t count() const { return count_; }
+
+   private:
+	mrpt::io::CFileGZInputStream& in_;
+	uint64_t count_ = 0;
+};
+
+void registerClassesOnce()
+{
+	// Debian links with --as-needed: without these calls the classes are not registered.
+	static const bool done = [] {
+		mrpt::obs::registerAllClasses_mrpt_obs();
+		mrpt::maps::registerAllClasses_mrpt_maps();
+		return true;
+	}();
+	(void)done;
+}
+
+std::vector<double> defaultElevations(int rows)
+{
+	std::vector<double> e(rows);
+	double lo = 0, hi = 0;
+	if (rows == 16) lo = -15, hi = 15;
+	else if (rows == 32)
+		lo = -30.67, hi = 10.67;
+	else if (rows == 64)
+		lo = -24.8, hi = 2.0;
+	else
+		return {};
+	for (int i = 0; i < rows; i++) e[i] = lo + (hi - lo) * i / (rows - 1);
+	return e;
+}
+
+void appendTransformed(
+	std::vector<PointXYZI>& out, const mrpt::poses::CPose3D& sensorPose, float x, float y, float z,
+	float i)
+{
+	double gx, gy, gz;
+	sensorPose.composePoint(x, y, z, gx, gy, gz);
+	out.push_back({static_cast<float>(gx), static_cast<float>(gy), static_cast<float>(gz), i});
+}
+}  // namespace
+
+bool observationToPoints(
+	const mrpt::obs::CObservation& o, std::vector<PointXYZI>& out, const RawlogSourceOptions& opts,
+	const std::string& source)
+{
+	using namespace mrpt::obs;
+	out.clear();
+	if (const auto* pc = dynamic_cast<const CObservationPointCloud*>(&o))
+	{
+		pc->load();	 // no-op unless externally stored
+		if (!pc->pointcloud)
+		{
+			if (pc->isExternallyStored())
+				throw std::runtime_error(
+					source + ": point cloud '" + pc->sensorLabel + "' refers to external file '" +
+					pc->getExternalStorageFile() + "', which could not be loaded");
+			return true;  // an empty cloud: the engine reports it
+		}
+		const auto& m = *pc->pointcloud;
+		const auto& xs = m.getPointsBufferRef_x();
+		const auto& ys = m.getPointsBufferRef_y();
+		const auto& zs = m.getPointsBufferRef_z();
+		const auto* xyzi = dynamic_cast<const mrpt::maps::CPointsMapXYZI*>(&m);
+		out.reserve(xs.size());
+		const bool identity = pc->sensorPose == mrpt::poses::CPose3D();
+		for (size_t k = 0; k < xs.size(); k++)
+		{
+			const float in = xyzi ? xyzi->getPointIntensity_fast(k) : 0.f;
+			if (identity) out.push_back({xs[k], ys[k], zs[k], in});
+			else
+				appendTransformed(out, pc->sensorPose, xs[k], ys[k], zs[k], in);
+		}
+		if (pc->isExternallyStored()) pc->unload();	 // keep memory flat
+		return true;
+	}
+	if (const auto* vs = dynamic_cast<const CObservationVelodyneScan*>(&o))
+	{
+		const CObservationVelodyneScan* src = vs;
+		CObservationVelodyneScan tmp;
+		if (vs->point_cloud.x.empty())
+		{
+			tmp = *vs;
+			tmp.generatePointCloud();
+			src = &tmp;
+		}
+		const auto& pcl = src->point_cloud;
+		out.reserve(pcl.x.size());
+		for (size_t k = 0; k < pcl.x.size(); k++)
+			appendTransformed(
+				out, vs->sensorPose, pcl.x[k], pcl.y[k], pcl.z[k], pcl.intensity[k] / 255.f);
+		return true;
+	}
+	if (const auto* rs = dynamic_cast<const CObservationRotatingScan*>(&o))
+	{
+		std::vector<double> elev = opts.rotatingScanElevationsDeg;
+		if (elev.empty()) elev = defaultElevations(rs->rowCount);
+		if (elev.size() != rs->rowCount)
+			throw std::runtime_error(
+				source + ": CObservationRotatingScan '" + rs->sensorLabel + "' has " +
+				std::to_string(rs->rowCount) +
+				" rows; no beam elevation table for that count (give one with "
+				"rotatingScanElevationsDeg)");
+		const bool hasI = rs->intensityImage.rows() == rs->rowCount &&
+			rs->intensityImage.cols() == rs->columnCount;
+		const double dAz = rs->columnCount > 1 ? rs->azimuthSpan / (rs->columnCount - 1) : 0.0;
+		for (int r = 0; r < rs->rowCount; r++)
+		{
+			const double el = elev[r] * M_PI / 180.0, ce = std::cos(el), se = std::sin(el);
+			for (int c = 0; c < rs->columnCount; c++)
+			{
+				const auto raw = rs->rangeImage(r, c);
+				if (raw == 0) continue;	 // no return
+				const double range = raw * rs->rangeResolution;
+				const double az = rs->startAzimuth + c * dAz;
+				appendTransformed(
+					out, rs->sensorPose, static_cast<float>(range * ce * std::cos(az)),
+					static_cast<float>(range * ce * std::sin(az)), static_cast<float>(range * se),
+					hasI ? rs->intensityImage(r, c) / 255.f : 0.f);
+			}
+		}
+		return true;
+	}
+	if (const auto* r3 = dynamic_cast<const CObservation3DRangeScan*>(&o))
+	{
+		r3->load();
+		mrpt::maps::CSimplePointsMap m;
+		if (r3->hasPoints3D)
+		{
+			for (size_t k = 0; k < r3->points3D_x.size(); k++)
+				appendTransformed(
+					out, r3->sensorPose, r3->points3D_x[k], r3->points3D_y[k], r3->points3D_z[k],
+					0.f);
+		}
+		else if (r3->hasRangeImage)
+		{
+			mrpt::obs::T3DPointsProjectionParams pp;
+			pp.takeIntoAccountSensorPoseOnRobot = true;
+			const_cast<CObservation3DRangeScan*>(r3)->unprojectInto(m, pp);
+			const auto& xs = m.getPointsBufferRef_x();
+			const auto& ys = m.getPointsBufferRef_y();
+			const auto& zs = m.getPointsBufferRef_z();
+			for (size_t k = 0; k < xs.size(); k++) out.push_back({xs[k], ys[k], zs[k], 0.f});
+		}
+		r3->unload();
+		return true;
+	}
+	return false;
+}
+
+struct RawlogSource::Impl
+{
+	mrpt::io::CFileGZInputStream file;
+	std::unique_ptr<CountingStream> counting;
+};
+
+RawlogSource::RawlogSource(const std::string& path, RawlogSourceOptions opts)
+	: impl_(std::make_unique<Impl>()), path_(path), opts_(std::move(opts))
+{
+	registerClassesOnce();
+	std::error_code ec;
+	if (!std::filesystem::exists(path, ec))
+		throw std::runtime_error("cannot open rawlog '" + path + "': no such file");
+	if (std::filesystem::is_directory(path, ec))
+		throw std::runtime_error("cannot open rawlog '" + path + "': it is a directory");
+	if (!std::ifstream(path).good() || !impl_->file.open(path))
+		throw std::runtime_error("cannot open rawlog '" + path + "': not readable");
+	impl_->counting = std::make_unique<CountingStream>(impl_->file);
+}
+
+RawlogSource::~RawlogSource() = default;
+
+double RawlogSource::progress() const
+{
+	const auto total = impl_->file.getTotalBytesCount();
+	if (total == 0) return -1;
+	return std::min(1.0, static_cast<double>(impl_->file.getPosition()) / total);
+}
+
+void RawlogSource::attachGroundTruth(int64_t ticks, const mrpt::poses::CPose3D& pose)
+{
+	if (pending_ && pendingTicks_ == ticks && !pending_->groundTruth)
+	{
+		pending_->groundTruth = pose;
+		return;
+	}
+	earlyGt_.emplace_back(ticks, pose);
+	if (earlyGt_.size() > 16) earlyGt_.pop_front();	 // only ever needed for the next scan
+}
+
+void RawlogSource::handleObservation(const mrpt::obs::CObservation& obs)
+{
+	using namespace mrpt::obs;
+	const int64_t ticks = obs.timestamp.time_since_epoch().count();
+	if (const auto* gt = dynamic_cast<const CObservationRobotPose*>(&obs))
+	{
+		attachGroundTruth(ticks, gt->pose.mean);
+		return;
+	}
+	if (!opts_.sensorLabel.empty() && obs.sensorLabel != opts_.sensorLabel) return;
+	Scan s;
+	if (!observationToPoints(obs, s.points, opts_, path_)) return;
+	s.index = scans_++;
+	s.stamp = mrpt::Clock::toDouble(obs.timestamp);
+	s.sensorLabel = obs.sensorLabel;
+	for (auto it = earlyGt_.begin(); it != earlyGt_.end(); ++it)
+		if (it->first == ticks)
+		{
+			s.groundTruth = it->second;
+			earlyGt_.erase(it);
+			break;
+		}
+	if (pending_) ready_.push_back(std::move(*pending_));
+	pending_ = std::move(s);
+	pendingTicks_ = ticks;
+}
+
+bool RawlogSource::readOne()
+{
+	auto arch = mrpt::serialization::archiveFrom(*impl_->counting);
+	const uint64_t before = impl_->counting->count();
+	mrpt::serialization::CSerializable::Ptr obj;
+	try
+	{
+		obj = arch.ReadObject();
+	}
+	catch (const mrpt::serialization::CExceptionEOF&)
+	{
+		if (impl_->counting->count() == before) return false;  // clean end between objects
+		stopReason_ = path_ + ": truncated: the file ends inside the object that starts at byte " +
+			std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
+		return false;
+	}
+	catch (const std::exception& e)
+	{
+		std::string what = e.what();
+		if (const auto nl = what.find("Call stack"); nl != std::string::npos) what.resize(nl);
+		while (!what.empty() && (what.back() == '\n' || what.back() == ' ')) what.pop_back();
+		if (objects_ == 0)
+			throw std::runtime_error(
+				path_ + ": not an MRPT rawlog (the first object cannot be read): " + what);
+		stopReason_ = path_ + ": corrupt object at byte " + std::to_string(before) + " (after " +
+			std::to_string(scans_) + " scans): " + what;
+		return false;
+	}
+	++objects_;
+	if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(obj))
+	{
+		for (const auto& o : *sf)
+			if (o) handleObservation(*o);
+	}
+	else if (auto o = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
+		handleObservation(*o);
+	// CActionCollection and other objects carry no scans: skipped here.
+	return true;
+}
+
+std::optional<Scan> RawlogSource::next()
+{
+	while (ready_.empty() && !ended_)
+		if (!readOne()) ended_ = true;
+	if (!ready_.empty())
+	{
+		Scan s = std::move(ready_.front());
+		ready_.pop_front();
+		return s;
+	}
+	if (pending_)
+	{
+		Scan s = std::move(*pending_);
+		pending_.reset();
+		return s;
+	}
+	if (objects_ == 0 && stopReason_.empty())
+		throw std::runtime_error(path_ + ": empty file, not an MRPT rawlog");
+	return std::nullopt;
+}
+
+}  // namespace rasterslam::io

@@ -1,0 +1,82 @@
+#include <mrpt/core/format.h>
+#include <rasterslam/io/run_outputs.h>
+#include <rasterslam/io/trajectory_io.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace rasterslam::io
+{
+Eigen::Isometry3d toIsometry(const mrpt::poses::CPose3D& p)
+{
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	const auto M = p.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
+	for (int r = 0; r < 4; r++)
+		for (int c = 0; c < 4; c++) T.matrix()(r, c) = M(r, c);
+	return T;
+}
+
+void ensureWritableDir(const std::string& dir)
+{
+	std::error_code ec;
+	fs::create_directories(dir, ec);
+	if (!fs::is_directory(dir))
+		throw std::runtime_error(
+			"output folder '" + dir + "' cannot be created" + (ec ? ": " + ec.message() : ""));
+	const auto probe = fs::path(dir) / (".rasterslam-write-test-" + std::to_string(::getpid()));
+	{
+		std::ofstream f(probe);
+		if (!f || !(f << "x") || !f.flush())
+			throw std::runtime_error("output folder '" + dir + "' is not writable");
+	}
+	fs::remove(probe, ec);
+}
+
+void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::containers::yaml& runInfo)
+{
+	ensureWritableDir(dir);
+	const fs::path d(dir);
+
+	Trajectory est, gt;
+	bool allGt = !res.scans.empty();
+	for (std::size_t i = 0; i < res.scans.size(); i++)
+	{
+		est.push_back({res.scans[i].stamp, toIsometry(res.poses[i])});
+		if (res.scans[i].groundTruth) gt.push_back({res.scans[i].stamp, toIsometry(*res.scans[i].groundTruth)});
+		else
+			allGt = false;
+	}
+	saveTrajectoryTum((d / "trajectory.tum").string(), est);
+	saveTrajectoryKitti((d / "trajectory.kitti").string(), est);
+	if (allGt)
+	{
+		saveTrajectoryTum((d / "groundtruth.tum").string(), gt);
+		saveTrajectoryKitti((d / "groundtruth.kitti").string(), gt);
+	}
+
+	std::string csv =
+		"index,stamp,points,status,inliers,keyframe,late,read_ms,rasterize_ms,odometry_ms,"
+		"mapping_ms,loop_ms,total_ms\n";
+	for (const auto& r : res.scans)
+		csv += mrpt::format(
+			"%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", r.index, r.stamp,
+			r.numPoints, toString(r.status), r.inliers, r.keyframe ? 1 : 0, r.late ? 1 : 0,
+			r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total);
+	writeFileAtomically((d / "timings.csv").string(), csv);
+
+	{
+		const auto tmp = (d / (".pose_graph.graph.tmp-" + std::to_string(::getpid()))).string();
+		res.graph.saveToTextFile(tmp);
+		fs::rename(tmp, d / "pose_graph.graph");
+	}
+
+	std::stringstream ss;
+	runInfo.printAsYAML(ss);
+	writeFileAtomically((d / "run.yaml").string(), ss.str());
+}
+
+}  // namespace rasterslam::io

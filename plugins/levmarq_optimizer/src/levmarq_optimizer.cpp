@@ -1,0 +1,64 @@
+// Pose-graph optimizer: MRPT's sparse Levenberg-Marquardt (SPA) on the 3D pose graph.
+#include <mrpt/core/initializer.h>
+#include <mrpt/graphslam/levmarq.h>
+#include <rasterslam/core/plugin.h>
+
+#include <chrono>
+
+namespace rasterslam
+{
+class LevMarqOptimizer : public Optimizer
+{
+	DEFINE_MRPT_OBJECT(LevMarqOptimizer, rasterslam)
+
+   public:
+	OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph) override;
+
+   protected:
+	void initializeImpl(ParamReader& p) override
+	{
+		maxIterations_ = p.getInt("max_iterations", maxIterations_);
+		initialLambda_ = p.getDouble("initial_lambda", initialLambda_);
+		tau_ = p.getDouble("tau", tau_);
+		e1_ = p.getDouble("e1", e1_);
+		e2_ = p.getDouble("e2", e2_);
+		if (maxIterations_ < 1)
+			throw ConfigError(p.context() + ".max_iterations: must be >= 1");
+	}
+
+   private:
+	int maxIterations_ = 100;
+	double initialLambda_ = 0, tau_ = 1e-3, e1_ = 1e-6, e2_ = 1e-6;
+};
+}  // namespace rasterslam
+
+using namespace rasterslam;
+
+IMPLEMENTS_MRPT_OBJECT(LevMarqOptimizer, Optimizer, rasterslam)
+
+MRPT_INITIALIZER(register_rasterslam_plugin_levmarq)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LevMarqOptimizer));
+}
+
+OptimizerResult LevMarqOptimizer::optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph)
+{
+	OptimizerResult r;
+	if (graph.edges.empty() || graph.nodes.size() < 2) return r;
+	const auto t0 = std::chrono::steady_clock::now();
+	mrpt::containers::yaml params = mrpt::containers::yaml::Map();
+	params["max_iterations"] = maxIterations_;
+	params["initial_lambda"] = initialLambda_;
+	params["tau"] = tau_;
+	params["e1"] = e1_;
+	params["e2"] = e2_;
+	mrpt::graphslam::TResultInfoSpaLevMarq info;
+	r.initialError = graph.chi2();
+	mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, nullptr, params);
+	r.ran = true;
+	r.iterations = info.num_iters;
+	r.finalError = graph.chi2();
+	r.time_ms =
+		std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	return r;
+}

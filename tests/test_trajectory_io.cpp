@@ -1,0 +1,206 @@
+// Trajectory files (TUM, KITTI), KITTI calibration and times, atomic writes.
+#include <rasterslam/io/trajectory_io.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "test_support.h"
+
+using namespace rasterslam;
+namespace fs = std::filesystem;
+
+namespace
+{
+io::Trajectory randomTrajectory(std::size_t n, double stamp0, unsigned seed)
+{
+	std::mt19937 rng(seed);
+	std::uniform_real_distribution<double> u(-1.0, 1.0);
+	io::Trajectory t;
+	for (std::size_t i = 0; i < n; ++i)
+	{
+		io::StampedPose sp;
+		sp.stamp = stamp0 + 0.1 * static_cast<double>(i) + 1e-4 * u(rng);
+		sp.pose.linear() = Eigen::Quaterniond::UnitRandom().toRotationMatrix();
+		sp.pose.translation() = Eigen::Vector3d(100 * u(rng), 100 * u(rng), 1e-3 * u(rng));
+		t.push_back(sp);
+	}
+	return t;
+}
+
+void writeText(const fs::path& p, const std::string& s)
+{
+	std::ofstream(p) << s;
+}
+
+/** Runs `f`, expects a std::runtime_error whose message contains every string of `parts`. */
+template <class F>
+void expectErrorWith(F f, const std::vector<std::string>& parts)
+{
+	try
+	{
+		f();
+		ADD_FAILURE() << "no exception";
+	}
+	catch (const std::runtime_error& e)
+	{
+		for (const auto& p : parts)
+			EXPECT_NE(std::string(e.what()).find(p), std::string::npos)
+			    << "message '" << e.what() << "' lacks '" << p << "'";
+	}
+}
+
+const std::string kIdentityKitti = "1 0 0 0 0 1 0 0 0 0 1 0\n";
+}  // namespace
+
+TEST(TrajectoryIo, TumRoundTripPreservesValues)
+{
+	// Eigen's UnitRandom draws from std::rand: seed it for a reproducible test.
+	std::srand(7);
+	const auto dir = test::tempDir("trajio");
+	const auto orig = randomTrajectory(50, 1.7e9 + 0.123456, 1);
+	const std::string path = (dir / "t.tum").string();
+	io::saveTrajectoryTum(path, orig);
+	io::TrajectoryFormat fmt = io::TrajectoryFormat::Auto;
+	const auto back = io::loadTrajectory(path, io::TrajectoryFormat::Auto, &fmt);
+	EXPECT_EQ(fmt, io::TrajectoryFormat::Tum);
+	ASSERT_EQ(back.size(), orig.size());
+	for (std::size_t i = 0; i < orig.size(); ++i)
+	{
+		EXPECT_NEAR(back[i].stamp, orig[i].stamp, 1e-9 * std::abs(orig[i].stamp));
+		EXPECT_LT((back[i].pose.matrix() - orig[i].pose.matrix()).cwiseAbs().maxCoeff(),
+		          1e-9 * 100);
+		EXPECT_LT((back[i].pose.linear() - orig[i].pose.linear()).cwiseAbs().maxCoeff(), 1e-12);
+	}
+	// Nothing but the file itself is left in the folder (the temporary was renamed).
+	EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+}
+
+TEST(TrajectoryIo, KittiRoundTripIsExactAndStampsAreIndices)
+{
+	std::srand(11);
+	const auto dir = test::tempDir("trajio");
+	const auto orig = randomTrajectory(30, 5.0, 2);
+	const std::string path = (dir / "t.kitti").string();
+	io::saveTrajectoryKitti(path, orig);
+	io::TrajectoryFormat fmt = io::TrajectoryFormat::Auto;
+	const auto back = io::loadTrajectory(path, io::TrajectoryFormat::Auto, &fmt);
+	EXPECT_EQ(fmt, io::TrajectoryFormat::Kitti);
+	ASSERT_EQ(back.size(), orig.size());
+	for (std::size_t i = 0; i < orig.size(); ++i)
+	{
+		EXPECT_EQ(back[i].stamp, static_cast<double>(i));
+		// Shortest round-trip formatting: the doubles come back bit for bit.
+		EXPECT_EQ(back[i].pose.matrix(), orig[i].pose.matrix()) << "pose " << i;
+	}
+}
+
+TEST(TrajectoryIo, ParsesCommentsBlankLinesAndFormatOverride)
+{
+	const auto dir = test::tempDir("trajio");
+	const fs::path p = dir / "a.txt";
+	writeText(p, "# header\n\n0.5 1 2 3 0 0 0.7071067811865476 0.7071067811865476\n  \n");
+	const auto t = io::loadTrajectory(p.string());
+	ASSERT_EQ(t.size(), 1u);
+	EXPECT_DOUBLE_EQ(t[0].stamp, 0.5);
+	EXPECT_DOUBLE_EQ(t[0].pose.translation().y(), 2.0);
+	// qz = qw = 1/sqrt(2): 90 degrees about z, so x maps onto y.
+	EXPECT_NEAR((t[0].pose.linear() * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(),
+	            0, 1e-12);
+	// Forcing KITTI on a TUM file is an error naming the expected layout.
+	expectErrorWith([&] { io::loadTrajectory(p.string(), io::TrajectoryFormat::Kitti); },
+	                {p.string(), "line 3", "12 columns", "got 8"});
+}
+
+TEST(TrajectoryIo, LoadErrorsNameFileAndLine)
+{
+	const auto dir = test::tempDir("trajio");
+	const fs::path cols = dir / "cols.txt";
+	writeText(cols, kIdentityKitti + kIdentityKitti + "1 0 0 0 0 1 0 0 0 0 1\n");
+	expectErrorWith([&] { io::loadTrajectory(cols.string()); },
+	                {cols.string(), "line 3", "got 11"});
+
+	const fs::path nine = dir / "nine.txt";
+	writeText(nine, "1 2 3 4 5 6 7 8 9\n");
+	expectErrorWith([&] { io::loadTrajectory(nine.string()); },
+	                {nine.string(), "line 1", "8", "12"});
+
+	const fs::path nan = dir / "nan.txt";
+	writeText(nan, kIdentityKitti + "1 0 0 nan 0 1 0 0 0 0 1 0\n");
+	expectErrorWith([&] { io::loadTrajectory(nan.string()); }, {nan.string(), "line 2", "finite"});
+
+	const fs::path word = dir / "word.txt";
+	writeText(word, "0 1 2 3 0 0 x 1\n");
+	expectErrorWith([&] { io::loadTrajectory(word.string()); }, {word.string(), "line 1", "'x'"});
+
+	const fs::path skew = dir / "skew.txt";
+	writeText(skew, "1 0.1 0 0 0 1 0 0 0 0 1 0\n");
+	expectErrorWith([&] { io::loadTrajectory(skew.string()); },
+	                {skew.string(), "line 1", "orthonormal"});
+
+	const fs::path mirror = dir / "mirror.txt";
+	writeText(mirror, "-1 0 0 0 0 1 0 0 0 0 1 0\n");
+	expectErrorWith([&] { io::loadTrajectory(mirror.string()); }, {mirror.string(), "orthonormal"});
+
+	const fs::path quat = dir / "quat.txt";
+	writeText(quat, "0 1 2 3 0 0 0 2\n");
+	expectErrorWith([&] { io::loadTrajectory(quat.string()); },
+	                {quat.string(), "line 1", "quaternion"});
+
+	const std::string missing = (dir / "missing.txt").string();
+	expectErrorWith([&] { io::loadTrajectory(missing); }, {missing});
+	expectErrorWith([&] { io::loadKittiCalibTr(missing); }, {missing});
+	expectErrorWith([&] { io::loadKittiTimes(missing); }, {missing});
+
+	const fs::path noTr = dir / "calib.txt";
+	writeText(noTr, "P0: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+	expectErrorWith([&] { io::loadKittiCalibTr(noTr.string()); }, {noTr.string(), "Tr:"});
+}
+
+TEST(TrajectoryIo, AtomicWriteReplacesAndFailsNamingTheFile)
+{
+	const auto dir = test::tempDir("trajio");
+	const fs::path p = dir / "out.txt";
+	io::writeFileAtomically(p.string(), "first\n");
+	io::writeFileAtomically(p.string(), "second\n");
+	std::ifstream in(p);
+	std::string s;
+	std::getline(in, s);
+	EXPECT_EQ(s, "second");
+	EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+	const std::string bad = (dir / "no-such-folder" / "x.txt").string();
+	expectErrorWith([&] { io::writeFileAtomically(bad, "x"); }, {bad});
+}
+
+TEST(TrajectoryIo, KittiCalibOnRealData)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const std::string dir = test::sharedData("kitti00-0000-0100");
+	const Eigen::Isometry3d Tr = io::loadKittiCalibTr(dir + "/calib.txt");
+	// Values of the `Tr:` line of sequence 00.
+	EXPECT_DOUBLE_EQ(Tr.matrix()(0, 1), -9.999672484946e-01);
+	EXPECT_DOUBLE_EQ(Tr.matrix()(2, 0), 9.999738645903e-01);
+	EXPECT_DOUBLE_EQ(Tr.translation().z(), -2.921968648686e-01);
+
+	const io::Trajectory id(1);
+	const auto conv = io::kittiCameraToVelodyne(id, Tr);
+	EXPECT_LT((conv[0].pose.matrix() - Eigen::Matrix4d::Identity()).norm(), 1e-9);
+
+	// From the data README: frames 0 -> 10 are 8.60 m apart (official), 7.49 m (SemanticKITTI).
+	for (const auto& [file, expected] : {std::pair<std::string, double>{"poses_official.txt", 8.60},
+	                                     {"poses_semantickitti.txt", 7.49}})
+	{
+		const auto cam = io::loadTrajectory(dir + "/" + file);
+		ASSERT_EQ(cam.size(), 101u) << file;
+		const auto velo = io::kittiCameraToVelodyne(cam, Tr);
+		const double d = (velo[10].pose.translation() - velo[0].pose.translation()).norm();
+		EXPECT_NEAR(d, expected, 0.01) << file;
+		// A camera 0.27 m behind the Velodyne moves differently when the car turns: the
+		// conversion must change the positions, not just relabel axes.
+		EXPECT_NEAR(velo[0].pose.translation().norm(), 0, 1e-6) << file;
+	}
+
+	const auto times = io::loadKittiTimes(dir + "/times.txt");
+	ASSERT_EQ(times.size(), 101u);
+	EXPECT_DOUBLE_EQ(times[1], 1.037359e-01);
+}
