@@ -47,3 +47,39 @@ inline std::filesystem::path tempDir(const std::string& tag)
 }
 
 }  // namespace rasterslam::test
+
+#include <array>
+#include <sys/wait.h>
+
+namespace rasterslam::test
+{
+struct CommandResult
+{
+	int exitCode = -1;
+	std::string output;  //!< stdout and stderr together
+};
+
+/** Runs a shell command, capturing stdout and stderr. */
+inline CommandResult runCommand(const std::string& cmd)
+{
+	CommandResult r;
+	FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+	if (!p) return r;
+	std::array<char, 4096> buf{};
+	size_t n = 0;
+	while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+	const int st = ::pclose(p);
+	r.exitCode = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+	return r;
+}
+
+/** A program of the build tree (build/bin). */
+inline std::string bin(const std::string& name) { return std::string(RASTERSLAM_BIN_DIR) + "/" + name; }
+
+/** A file of the source tree. */
+inline std::string sourcePath(const std::string& rel)
+{
+	return std::string(RASTERSLAM_SOURCE_DIR) + "/" + rel;
+}
+
+}  // namespace rasterslam::test

@@ -293,7 +293,10 @@ int runCommand(int argc, char** argv)
 		percentile(total, 0.5), percentile(total, 0.95),
 		res.wall_s > 0 ? res.scans.size() / res.wall_s : 0.0, peakRssMb());
 	if (ate) std::printf("rasterslam: ATE against the rawlog's ground truth: %.3f m RMSE over %.1f m\n", *ate, pathLen);
-	if (!res.stopReason.empty()) std::fprintf(stderr, "rasterslam: warning: input stopped early: %s\n", res.stopReason.c_str());
+	if (!res.stopReason.empty())
+		std::fprintf(
+			stderr, "rasterslam: error: the input stopped early, outputs cover the %zu scans before: %s\n",
+			res.scans.size(), res.stopReason.c_str());
 	if (wrote) std::printf("rasterslam: outputs in %s\n", fs::absolute(outDir).lexically_normal().c_str());
 	if (!runError.empty())
 	{

@@ -280,14 +280,23 @@ bool RawlogSource::readOne()
 	}
 	catch (const std::exception& e)
 	{
-		std::string what = e.what();
-		if (const auto nl = what.find("Call stack"); nl != std::string::npos) what.resize(nl);
-		while (!what.empty() && (what.back() == '\n' || what.back() == ' ')) what.pop_back();
-		if (objects_ == 0)
+		// MRPT nests exceptions ("Original exception: ..."); the innermost message says most.
+		const std::string full = e.what();
+		std::string what = full;
+		for (auto pos = full.find("Message:"); pos != std::string::npos; pos = full.find("Message:", pos + 1))
+		{
+			const auto end = full.find('\n', pos);
+			what = full.substr(pos + 9, end == std::string::npos ? std::string::npos : end - pos - 9);
+		}
+		if (objects_ == 0 && full.find("EOF") == std::string::npos)
 			throw std::runtime_error(
 				path_ + ": not an MRPT rawlog (the first object cannot be read): " + what);
-		stopReason_ = path_ + ": corrupt object at byte " + std::to_string(before) + " (after " +
-			std::to_string(scans_) + " scans): " + what;
+		if (full.find("EOF") != std::string::npos || full.find("Cannot read requested number") != std::string::npos)
+			stopReason_ = path_ + ": truncated: the file ends inside the object that starts at byte " +
+				std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
+		else
+			stopReason_ = path_ + ": corrupt object at byte " + std::to_string(before) + " (after " +
+				std::to_string(scans_) + " scans): " + what;
 		return false;
 	}
 	++objects_;

@@ -26,7 +26,13 @@ class GicpOdometry : public Odometry
 
    private:
 	using Cloud = pcl::PointCloud<pcl::PointXYZ>;
-	using Gicp = pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>;
+	/** Exposes the covariances GICP computed for the source scan, so that they serve again
+	 *  when that scan becomes the target (saves one of the two k-NN covariance passes). */
+	class Gicp : public pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>
+	{
+	   public:
+		MatricesVectorPtr sourceCovariances() const { return input_covariances_; }
+	};
 
 	Cloud::Ptr preprocess(const Scan& scan) const;
 
@@ -39,6 +45,7 @@ class GicpOdometry : public Odometry
 	bool constantVelocity_ = true;
 	// state
 	Cloud::Ptr previous_;
+	Gicp::MatricesVectorPtr previousCov_;  // covariances of previous_, when known
 	Eigen::Matrix4f velocity_ = Eigen::Matrix4f::Identity();
 	int sinceKeyframe_ = 0;
 };
@@ -80,6 +87,7 @@ void GicpOdometry::initializeImpl(ParamReader& p)
 	positive(keyframeEvery_, "keyframe_every");
 	positive(minPoints_, "min_points");
 	previous_.reset();
+	previousCov_.reset();
 	velocity_.setIdentity();
 	sinceKeyframe_ = 0;
 }
@@ -120,10 +128,12 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 		r.status = TrackingStatus::Initializing;
 		r.keyframe = true;
 		previous_ = cloud;
+		previousCov_.reset();
 		sinceKeyframe_ = 0;
 		return r;
 	}
 	Eigen::Matrix4f T = prior;
+	Gicp::MatricesVectorPtr nextCov;
 	if (static_cast<int>(cloud->size()) < minPoints_ ||
 		static_cast<int>(previous_->size()) < minPoints_)
 	{
@@ -139,8 +149,11 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 		gicp.setTransformationEpsilon(transformationEpsilon_);
 		gicp.setInputSource(cloud);
 		gicp.setInputTarget(previous_);
+		if (previousCov_ && previousCov_->size() == previous_->size())
+			gicp.setTargetCovariances(previousCov_);
 		Cloud aligned;
 		gicp.align(aligned, prior);
+		nextCov = gicp.sourceCovariances();
 		const double fitness = gicp.getFitnessScore(maxCorrespondence_m_);
 		if (!gicp.hasConverged() || !std::isfinite(fitness) || fitness > maxFitness_m2_)
 		{
@@ -164,6 +177,7 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 	for (int i = 3; i < 6; i++) r.information(i, i) = infoRotation_;
 	if (r.status == TrackingStatus::Lost) r.information *= 1e-3;  // a guess: trust it little
 	previous_ = cloud;
+	previousCov_ = nextCov;
 	if (++sinceKeyframe_ >= keyframeEvery_)
 	{
 		r.keyframe = true;

@@ -1,0 +1,67 @@
+// A simulation scenario as read from a YAML file (rawlogs/*.yaml; keys in rawlogs/README.md).
+#pragma once
+
+#include <rasterslam/sim/world.h>
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace rasterslam::sim
+{
+struct NoiseParams
+{
+	/** Standard deviation of the Gaussian range noise along the beam. */
+	double range_sigma_m = 0.02;
+	/** Probability that a return that should exist is lost. */
+	double dropout_prob = 0.02;
+	/** Standard deviation of the Gaussian noise on the intensity (clamped to [0,1]). */
+	double intensity_sigma = 0.03;
+};
+
+struct RouteParams
+{
+	/** "block_loop", "figure_eight", or "waypoints" (then `waypoints` is used). */
+	std::string pattern = "block_loop";
+	/** Size of the block loop, in blocks. */
+	int blocks_x = 2;
+	int blocks_y = 1;
+	std::vector<Eigen::Vector2d> waypoints;
+	bool closed = true;
+	double turn_radius_m = 6;
+};
+
+struct Scenario
+{
+	/** The file it came from, for messages. */
+	std::string source;
+	std::uint32_t seed = 1;
+	/** "hdl64" or "vlp16". */
+	std::string lidar = "hdl64";
+	std::size_t scans = 300;
+	double rate_hz = 10;
+	double speed_mps = 8;
+	double sensor_height_m = 1.73;
+	double start_stamp_s = 1.7e9;
+	/** Threads casting one scan's rays. */
+	int threads = 2;
+	/** Point coordinates are rounded to multiples of this; 0 keeps them unrounded. */
+	double point_resolution_m = 1.0 / 1024;
+	RouteParams route;
+	TownParams town;
+	NoiseParams noise;
+};
+
+/** Reads a scenario. Missing keys keep their defaults; an unknown key, a value of the wrong
+ *  type or out of range, or an unreadable file throws std::runtime_error naming the file and
+ *  the key. */
+Scenario loadScenario(const std::string& path);
+
+/** Checks ranges (positive rates, probabilities in [0,1], ...); throws std::runtime_error
+ *  naming `sc.source` and the key. loadScenario() calls it; call it again after overrides. */
+void validateScenario(const Scenario& sc);
+
+}  // namespace rasterslam::sim

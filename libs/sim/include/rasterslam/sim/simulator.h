@@ -1,0 +1,64 @@
+// Turns a world, a LiDAR and a route into scans with ground truth.
+#pragma once
+
+#include <rasterslam/core/types.h>
+#include <rasterslam/sim/lidar_model.h>
+#include <rasterslam/sim/route.h>
+#include <rasterslam/sim/scenario.h>
+#include <rasterslam/sim/world.h>
+
+#include <mrpt/poses/CPose3D.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+
+namespace rasterslam::sim
+{
+struct SimulatorOptions
+{
+	NoiseParams noise;
+	std::uint32_t seed = 1;
+	double sensor_height_m = 1.73;
+	double rate_hz = 10;
+	double speed_mps = 8;
+	double start_stamp_s = 1.7e9;
+	/** Threads per scan; the output does not depend on it. */
+	int threads = 2;
+	/** Coordinates are rounded to multiples of this (0: not rounded). The default 2^-10 m
+	 *  (under 1 mm, far below the range noise) zeroes the low bits of the float coordinates,
+	 *  which halves the gzip-compressed rawlog and speeds up its compression. */
+	double point_resolution_m = 1.0 / 1024;
+};
+
+/** Scans are instantaneous: every ray of a sweep leaves from the same pose (no motion
+ *  distortion). Intensities are rounded to 1/256, as a sensor's 8-bit value. Random draws are seeded per (seed, scan index, block of azimuths), so a scan
+ *  depends only on its inputs, not on the thread count or on the scans before it. */
+class Simulator
+{
+   public:
+	Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route route, SimulatorOptions opt);
+	/** Builds the town, the route and the LiDAR that the scenario describes. */
+	static Simulator fromScenario(const Scenario& sc);
+
+	/** Scan k along the route, ground truth included. */
+	Scan scan(std::size_t k) const;
+	/** Ground truth of scan k: the sensor frame in the world. */
+	mrpt::poses::CPose3D sensorPose(std::size_t k) const;
+	double stamp(std::size_t k) const;
+	/** A scan from any sensor pose (points in the sensor frame; groundTruth = the pose). */
+	Scan scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t index, double stamp) const;
+
+	const World& world() const { return *world_; }
+	const LidarModel& lidar() const { return lidar_; }
+	const Route& route() const { return route_; }
+	const SimulatorOptions& options() const { return opt_; }
+
+   private:
+	std::shared_ptr<const World> world_;
+	LidarModel lidar_;
+	Route route_;
+	SimulatorOptions opt_;
+};
+
+}  // namespace rasterslam::sim

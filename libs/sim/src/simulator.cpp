@@ -1,0 +1,159 @@
+// Casting a sweep's rays (in parallel, deterministic) and the scenario -> simulator glue.
+#include <rasterslam/sim/simulator.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <thread>
+
+namespace rasterslam::sim
+{
+namespace
+{
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+// Azimuth columns per work item: also the unit of random seeding, so it must not depend on
+// the thread count.
+constexpr int kChunk = 64;
+
+std::uint64_t splitmix64(std::uint64_t x)
+{
+	x += 0x9E3779B97F4A7C15ull;
+	x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+	x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+	return x ^ (x >> 31);
+}
+}  // namespace
+
+Simulator::Simulator(
+	std::shared_ptr<const World> world, LidarModel lidar, Route route, SimulatorOptions opt)
+	: world_(std::move(world)), lidar_(std::move(lidar)), route_(std::move(route)), opt_(opt)
+{
+	if (!world_) throw std::invalid_argument("Simulator: no world");
+	if (!(opt_.rate_hz > 0) || !(opt_.speed_mps >= 0) || opt_.threads < 1 ||
+		!(opt_.point_resolution_m >= 0))
+		throw std::invalid_argument(
+			"Simulator: needs rate_hz > 0, speed_mps >= 0, threads >= 1, point_resolution_m >= 0");
+}
+
+Simulator Simulator::fromScenario(const Scenario& sc)
+{
+	auto world = std::make_shared<const World>(World::generate(sc.town, sc.seed));
+	std::vector<Eigen::Vector2d> wp;
+	if (sc.route.pattern == "block_loop")
+		wp = Route::blockLoop(sc.town, sc.route.blocks_x, sc.route.blocks_y);
+	else if (sc.route.pattern == "figure_eight")
+		wp = Route::figureEight(sc.town);
+	else if (sc.route.pattern == "waypoints")
+		wp = sc.route.waypoints;
+	else
+		throw std::invalid_argument(
+			sc.source + ": route.pattern '" + sc.route.pattern +
+			"' unknown (known: block_loop, figure_eight, waypoints)");
+	SimulatorOptions o;
+	o.noise = sc.noise;
+	o.seed = sc.seed;
+	o.sensor_height_m = sc.sensor_height_m;
+	o.rate_hz = sc.rate_hz;
+	o.speed_mps = sc.speed_mps;
+	o.start_stamp_s = sc.start_stamp_s;
+	o.threads = sc.threads;
+	o.point_resolution_m = sc.point_resolution_m;
+	return Simulator(
+		std::move(world), LidarModel::byName(sc.lidar),
+		Route(wp, sc.route.closed, sc.route.turn_radius_m), o);
+}
+
+double Simulator::stamp(std::size_t k) const
+{
+	return opt_.start_stamp_s + static_cast<double>(k) / opt_.rate_hz;
+}
+
+mrpt::poses::CPose3D Simulator::sensorPose(std::size_t k) const
+{
+	const double s = opt_.speed_mps * static_cast<double>(k) / opt_.rate_hz;
+	return sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
+}
+
+Scan Simulator::scan(std::size_t k) const { return scanFrom(sensorPose(k), k, stamp(k)); }
+
+Scan Simulator::scanFrom(
+	const mrpt::poses::CPose3D& T_world_sensor, std::size_t index, double stampSec) const
+{
+	const Eigen::Matrix3d R = T_world_sensor.getRotationMatrix().asEigen();
+	const Eigen::Vector3d origin(T_world_sensor.x(), T_world_sensor.y(), T_world_sensor.z());
+	const int nBeams = lidar_.beamCount(), nAz = lidar_.azimuthSteps();
+	std::vector<double> ce(nBeams), se(nBeams), ca(nAz), sa(nAz);
+	for (int b = 0; b < nBeams; b++)
+	{
+		ce[b] = std::cos(lidar_.elevationsDeg()[b] * kDeg);
+		se[b] = std::sin(lidar_.elevationsDeg()[b] * kDeg);
+	}
+	for (int a = 0; a < nAz; a++)
+	{
+		const double az = 2 * 3.14159265358979323846 * a / nAz;
+		ca[a] = std::cos(az);
+		sa[a] = std::sin(az);
+	}
+
+	const int nChunks = (nAz + kChunk - 1) / kChunk;
+	std::vector<std::vector<PointXYZI>> out(nChunks);
+	std::atomic<int> next{0};
+	const double minR = lidar_.minRange_m(), maxR = lidar_.maxRange_m();
+	const NoiseParams& nz = opt_.noise;
+	const double res = opt_.point_resolution_m;
+	const auto quantize = [res](double v)
+	{ return static_cast<float>(res > 0 ? std::round(v / res) * res : v); };
+	const auto work = [&]()
+	{
+		for (int c = next++; c < nChunks; c = next++)
+		{
+			std::mt19937_64 rng(splitmix64(
+				splitmix64(opt_.seed) ^ splitmix64(index * 0x100000001B3ull + c)));
+			std::normal_distribution<double> rangeNoise(0, 1), intensityNoise(0, 1);
+			std::uniform_real_distribution<double> unif(0, 1);
+			auto& pts = out[c];
+			pts.reserve(static_cast<std::size_t>(kChunk) * nBeams);
+			const int aEnd = std::min(nAz, (c + 1) * kChunk);
+			// Azimuth-major, all beams at one azimuth in turn, as a Velodyne fires them.
+			for (int a = c * kChunk; a < aEnd; a++)
+				for (int b = 0; b < nBeams; b++)
+				{
+					const Eigen::Vector3d ds(ce[b] * ca[a], ce[b] * sa[a], se[b]);
+					const RayHit hit = world_->raycast(origin, R * ds, maxR);
+					if (!hit.hit() || hit.range < minR) continue;
+					if (nz.dropout_prob > 0 && unif(rng) < nz.dropout_prob) continue;
+					double r = hit.range;
+					if (nz.range_sigma_m > 0) r += nz.range_sigma_m * rangeNoise(rng);
+					if (r < minR || r > maxR) continue;
+					double inten = nominalIntensity(hit.kind);
+					if (nz.intensity_sigma > 0) inten += nz.intensity_sigma * intensityNoise(rng);
+					PointXYZI p;
+					p.x = quantize(r * ds.x());
+					p.y = quantize(r * ds.y());
+					p.z = quantize(r * ds.z());
+					p.intensity = static_cast<float>(std::round(std::clamp(inten, 0.0, 1.0) * 256) / 256);
+					pts.push_back(p);
+				}
+		}
+	};
+	const int nThreads = std::min(opt_.threads, nChunks);
+	std::vector<std::thread> pool;
+	for (int t = 1; t < nThreads; t++) pool.emplace_back(work);
+	work();
+	for (auto& th : pool) th.join();
+
+	Scan scan;
+	scan.index = index;
+	scan.stamp = stampSec;
+	scan.sensorLabel = "LIDAR";
+	std::size_t total = 0;
+	for (const auto& v : out) total += v.size();
+	scan.points.reserve(total);
+	for (const auto& v : out) scan.points.insert(scan.points.end(), v.begin(), v.end());
+	scan.groundTruth = T_world_sensor;
+	return scan;
+}
+
+}  // namespace rasterslam::sim

@@ -1,0 +1,229 @@
+// Procedural town: a grid of blocks lined with buildings, walls, trees and poles, cars parked
+// at the kerbs, on gently rolling ground.
+#include <rasterslam/sim/world.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+namespace rasterslam::sim
+{
+namespace
+{
+constexpr double kPi = 3.14159265358979323846;
+
+class Rng
+{
+   public:
+	explicit Rng(std::uint32_t seed) : gen_(seed) {}
+	// Drawn from raw 32-bit outputs: std::uniform_real_distribution's algorithm is not fixed by
+	// the standard, this keeps a seed's town identical across standard libraries.
+	double uniform(double lo, double hi)
+	{
+		return lo + (hi - lo) * (static_cast<double>(gen_()) / 4294967296.0);
+	}
+	bool chance(double p) { return uniform(0, 1) < p; }
+
+   private:
+	std::mt19937 gen_;
+};
+
+GroundModel makeGround(const TownParams& p, Rng& rng)
+{
+	// A slight tilt plus hills whose slopes add up to at most max_slope, so every slope bound
+	// in the raycaster holds and the vehicle never climbs more than max_slope.
+	const double extentX = p.blocks_x * p.pitch(), extentY = p.blocks_y * p.pitch();
+	const double tiltSlope = p.hills > 0 ? 0.2 * p.max_slope : p.max_slope;
+	const double tiltDir = rng.uniform(0, 2 * kPi);
+	const Eigen::Vector2d tilt = tiltSlope * Eigen::Vector2d(std::cos(tiltDir), std::sin(tiltDir));
+	std::vector<Hill> hills;
+	const double perHill = p.hills > 0 ? (p.max_slope - tiltSlope) / p.hills : 0;
+	for (int i = 0; i < p.hills; i++)
+	{
+		Hill h;
+		h.x = rng.uniform(-0.1, 1.1) * extentX;
+		h.y = rng.uniform(-0.1, 1.1) * extentY;
+		h.radius_m = rng.uniform(0.4, 0.9) * std::max(extentX, extentY);
+		const double sign = rng.chance(0.7) ? 1 : -1;
+		h.height_m = sign * perHill * h.radius_m / kHillSlopeFactor * rng.uniform(0.6, 1.0);
+		hills.push_back(h);
+	}
+	return GroundModel(0, tilt, hills);
+}
+
+void addTree(World& w, Rng& rng, double x, double y)
+{
+	const double trunkH = rng.uniform(2.2, 3.5);
+	w.addCylinderOnGround(x, y, rng.uniform(0.12, 0.25), trunkH + 0.5, ObjectKind::TreeTrunk);
+	const double rz = rng.uniform(1.5, 2.8);
+	w.addEllipsoidOnGround(x, y, trunkH, rng.uniform(1.3, 2.2), rz, ObjectKind::TreeCrown);
+}
+
+void addCar(World& w, Rng& rng, double x, double y, double yaw)
+{
+	// Body plus a narrower cabin: a box on the ground would hide the wheels' gap and the
+	// roof's shape that make cars recognisable in a scan.
+	const double len = rng.uniform(4.0, 4.8), wid = rng.uniform(1.7, 1.9);
+	const double ca = std::cos(yaw), sa = std::sin(yaw);
+	w.addBoxOnGround(x, y, yaw, len / 2, wid / 2, rng.uniform(0.9, 1.1), ObjectKind::Car, 0.3);
+	const double shift = rng.uniform(-0.3, 0.1);
+	w.addBoxOnGround(
+		x + shift * ca, y + shift * sa, yaw, len * 0.28, wid / 2 - 0.1, rng.uniform(1.4, 1.6),
+		ObjectKind::Car, 0.9);
+}
+
+/** One side of a block: a frontage line from `a` along unit `u`, of length `len`; `inward`
+ *  points into the block. Kerb at the line itself. */
+struct Side
+{
+	Eigen::Vector2d a, u, inward;
+	double len;
+	Eigen::Vector2d at(double s, double depth) const { return a + s * u + depth * inward; }
+	double yaw() const { return std::atan2(u.y(), u.x()); }
+};
+
+void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double reserved)
+{
+	// Sidewalk furniture: poles at the kerb, trees a little further in.
+	const auto scatter = [&](double per100m, auto&& place)
+	{
+		if (per100m <= 0) return;
+		const double spacing = 100.0 / per100m;
+		for (double s = rng.uniform(0.3, 1.0) * spacing; s < side.len - 2; s += spacing)
+			place(std::clamp(s + rng.uniform(-0.2, 0.2) * spacing, 2.0, side.len - 2));
+	};
+	scatter(p.poles_per_100m,
+			[&](double s)
+			{
+				const auto q = side.at(s, 0.5);
+				w.addCylinderOnGround(q.x(), q.y(), 0.1, rng.uniform(5, 8), ObjectKind::Pole);
+			});
+	scatter(p.trees_per_100m,
+			[&](double s)
+			{
+				const auto q = side.at(s, std::min(1.8, 0.6 * p.sidewalk_m));
+				addTree(w, rng, q.x(), q.y());
+			});
+
+	// Parked cars in the street, 1.1 m off the kerb, never in the intersections.
+	if (p.cars_per_100m > 0)
+	{
+		const double occupancy = std::min(1.0, p.cars_per_100m * 6.0 / 100.0);
+		for (double s = 3.5; s < side.len - 3.5; s += 6.0)
+		{
+			if (!rng.chance(occupancy)) continue;
+			const auto q = side.at(s, -1.1);
+			addCar(w, rng, q.x(), q.y(), side.yaw() + (rng.chance(0.5) ? 0 : kPi));
+		}
+	}
+
+	// Frontage: buildings of random width, sometimes a gap closed by a wall. `reserved` keeps
+	// the corners to the sides that span them.
+	const double setback = p.sidewalk_m;
+	double s = reserved;
+	const double end = side.len - reserved;
+	const double maxDepth = std::max(4.0, std::min(16.0, p.block_size_m / 2 - setback - 2));
+	while (end - s > 4)
+	{
+		if (rng.chance(0.2))
+		{
+			const double gap = std::min(rng.uniform(4, 10), end - s);
+			if (rng.chance(0.6))
+			{
+				const auto q = side.at(s + gap / 2, setback + 0.15);
+				w.addBoxOnGround(q.x(), q.y(), side.yaw(), gap / 2, 0.15, rng.uniform(1.8, 2.8),
+								 ObjectKind::Wall);
+			}
+			s += gap;
+			continue;
+		}
+		double width = rng.uniform(8, 20);
+		if (end - s - width < 8) width = end - s;
+		const double depth = rng.uniform(std::min(8.0, maxDepth), maxDepth);
+		const double height = rng.uniform(p.building_height_min_m, p.building_height_max_m);
+		const auto q = side.at(s + width / 2, setback + depth / 2);
+		w.addBoxOnGround(q.x(), q.y(), side.yaw(), width / 2, depth / 2, height,
+						 ObjectKind::Building);
+		s += width;
+	}
+}
+
+void check(bool ok, const std::string& what)
+{
+	if (!ok) throw std::invalid_argument("town: " + what);
+}
+}  // namespace
+
+World World::generate(const TownParams& p, std::uint32_t seed)
+{
+	check(p.blocks_x >= 1 && p.blocks_y >= 1, "blocks_x and blocks_y must be >= 1");
+	check(p.street_width_m >= 6, "street_width_m must be >= 6 (two lanes and parked cars)");
+	check(p.sidewalk_m >= 1, "sidewalk_m must be >= 1");
+	check(p.block_size_m >= 2 * p.sidewalk_m + 10, "block_size_m too small for its sidewalks");
+	check(p.building_height_min_m > 0 && p.building_height_max_m >= p.building_height_min_m,
+		  "building heights must satisfy 0 < min <= max");
+	check(p.trees_per_100m >= 0 && p.poles_per_100m >= 0 && p.cars_per_100m >= 0,
+		  "densities must be >= 0");
+	check(p.hills >= 0 && p.hills <= 32, "hills must be in 0..32");
+	check(p.max_slope >= 0 && p.max_slope <= 0.15, "max_slope must be in [0, 0.15]");
+	check(p.outskirts_m >= 0, "outskirts_m must be >= 0");
+
+	Rng rng(seed);
+	World w(makeGround(p, rng), 4.0);
+	const double P = p.pitch(), hw = p.street_width_m / 2;
+	for (int bx = 0; bx < p.blocks_x; bx++)
+		for (int by = 0; by < p.blocks_y; by++)
+		{
+			const double x0 = bx * P + hw, y0 = by * P + hw, L = p.block_size_m;
+			const double corner = p.sidewalk_m + std::min(16.0, L / 2 - p.sidewalk_m - 2);
+			// Counter-clockwise sides: inward = u rotated +90 degrees.
+			const Side sides[4] = {
+				{{x0, y0}, {1, 0}, {0, 1}, L},
+				{{x0 + L, y0}, {0, 1}, {-1, 0}, L},
+				{{x0 + L, y0 + L}, {-1, 0}, {0, -1}, L},
+				{{x0, y0 + L}, {0, -1}, {1, 0}, L}};
+			for (int k = 0; k < 4; k++)
+				fillSide(w, rng, p, sides[k], k % 2 == 0 ? p.sidewalk_m : corner);
+			// A courtyard tree or two.
+			const int n = rng.chance(0.5) ? 1 : 2;
+			for (int i = 0; i < n; i++)
+				addTree(w, rng, x0 + L * rng.uniform(0.45, 0.55), y0 + L * rng.uniform(0.4, 0.6));
+		}
+
+	// Outskirts: a belt of trees and fences beyond the outer streets, so that the outer
+	// streets' scans are not empty on one side.
+	if (p.outskirts_m > 0)
+	{
+		const double xmin = -hw, ymin = -hw;
+		const double xmax = p.blocks_x * P + hw, ymax = p.blocks_y * P + hw;
+		const double perimeter = 2 * (xmax - xmin + ymax - ymin);
+		const int nTrees = static_cast<int>(perimeter / 100.0 * 4 * p.outskirts_m / 10.0);
+		for (int i = 0; i < nTrees; i++)
+		{
+			const double s = rng.uniform(0, perimeter);
+			const bool fence = rng.chance(0.15);
+			// A fence turns freely: keep its whole length out of the street.
+			const double halfLen = fence ? rng.uniform(3, 8) : 0;
+			const double depth = rng.uniform(3 + halfLen, std::max(3 + halfLen, p.outskirts_m));
+			Eigen::Vector2d q;
+			if (s < xmax - xmin)
+				q = {xmin + s, ymin - depth};
+			else if (s < (xmax - xmin) + (ymax - ymin))
+				q = {xmax + depth, ymin + s - (xmax - xmin)};
+			else if (s < 2 * (xmax - xmin) + (ymax - ymin))
+				q = {xmax - (s - (xmax - xmin) - (ymax - ymin)), ymax + depth};
+			else
+				q = {xmin - depth, ymax - (s - 2 * (xmax - xmin) - (ymax - ymin))};
+			if (fence)
+				w.addBoxOnGround(q.x(), q.y(), rng.uniform(0, kPi), halfLen, 0.1,
+								 rng.uniform(1.2, 2.0), ObjectKind::Wall);
+			else
+				addTree(w, rng, q.x(), q.y());
+		}
+	}
+	return w;
+}
+
+}  // namespace rasterslam::sim

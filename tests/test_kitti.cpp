@@ -1,0 +1,126 @@
+// kitti2rawlog on the real KITTI sample: the rawlog holds the scans and the Velodyne-frame
+// ground truth inv(Tr) * P_i * Tr.
+#include <rasterslam/io/kitti.h>
+#include <rasterslam/io/rawlog_source.h>
+#include <rasterslam/io/trajectory_io.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "test_support.h"
+
+using namespace rasterslam;
+namespace fs = std::filesystem;
+
+namespace
+{
+std::vector<Scan> readAll(const std::string& path)
+{
+	io::RawlogSource src(path);
+	std::vector<Scan> v;
+	while (auto s = src.next()) v.push_back(std::move(*s));
+	EXPECT_EQ(src.stopReason(), "");
+	return v;
+}
+}  // namespace
+
+TEST(Kitti, ConverterEmbedsScansAndGroundTruth)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto out = (test::tempDir("kitti") / "k.rawlog").string();
+	const auto r = test::runCommand(
+		test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D +
+		"/poses_semantickitti.txt --calib " + D + "/calib.txt --times " + D +
+		"/times.txt --first 5 --last 14 -o " + out);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+
+	const auto scans = readAll(out);
+	ASSERT_EQ(scans.size(), 10u);
+	const auto bins = io::listKittiBins(D + "/velodyne");
+	const auto times = io::loadKittiTimes(D + "/times.txt");
+	const auto gt = io::kittiCameraToVelodyne(
+		io::loadTrajectory(D + "/poses_semantickitti.txt"), io::loadKittiCalibTr(D + "/calib.txt"));
+	for (size_t k = 0; k < scans.size(); k++)
+	{
+		const size_t frame = 5 + k;
+		const auto pts = io::loadKittiBin(bins[frame]);
+		ASSERT_EQ(scans[k].points.size(), pts.size()) << frame;
+		EXPECT_EQ(scans[k].points[123].x, pts[123].x);
+		EXPECT_EQ(scans[k].points.back().intensity, pts.back().intensity);
+		EXPECT_NEAR(scans[k].stamp, times[frame], 1e-6);
+		ASSERT_TRUE(scans[k].groundTruth) << frame;
+		const auto& g = gt[frame].pose;
+		EXPECT_NEAR(scans[k].groundTruth->x(), g.translation().x(), 1e-9);
+		EXPECT_NEAR(scans[k].groundTruth->y(), g.translation().y(), 1e-9);
+		EXPECT_NEAR(scans[k].groundTruth->z(), g.translation().z(), 1e-9);
+		const auto R = scans[k].groundTruth->getRotationMatrix();
+		for (int i = 0; i < 3; i++)
+			for (int j = 0; j < 3; j++) EXPECT_NEAR(R(i, j), g.linear()(i, j), 1e-9);
+	}
+	// Velodyne frame: the car drives along +x, so x grows and the height barely changes.
+	EXPECT_GT(scans.back().groundTruth->x() - scans.front().groundTruth->x(), 5.0);
+	EXPECT_LT(std::abs(scans.back().groundTruth->z() - scans.front().groundTruth->z()), 0.5);
+
+	// MRPT's own tool opens it.
+	const auto info = test::runCommand("rawlog-edit --info -i " + out);
+	ASSERT_EQ(info.exitCode, 0) << info.output;
+	EXPECT_NE(info.output.find("GROUND_TRUTH /     10"), std::string::npos) << info.output;
+	EXPECT_NE(info.output.find("LIDAR /     10"), std::string::npos) << info.output;
+}
+
+TEST(Kitti, ExternalStorageAndSequenceLayout)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto dir = test::tempDir("kitti");
+	// A KITTI-layout copy of three scans: dataset/sequences/00/{velodyne,calib,times}, dataset/poses/00.txt
+	const auto seq = dir / "dataset" / "sequences" / "00";
+	fs::create_directories(seq / "velodyne");
+	fs::create_directories(dir / "dataset" / "poses");
+	const auto bins = io::listKittiBins(D + "/velodyne");
+	for (int i = 0; i < 3; i++)
+		fs::create_symlink(bins[i], seq / "velodyne" / fs::path(bins[i]).filename());
+	fs::copy_file(D + "/calib.txt", seq / "calib.txt");
+	fs::copy_file(D + "/times.txt", seq / "times.txt");
+	fs::copy_file(D + "/poses_official.txt", dir / "dataset" / "poses" / "00.txt");
+
+	const auto ext = (dir / "ext.rawlog").string(), emb = (dir / "emb.rawlog").string();
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --sequence " + seq.string() + " --external -o " + ext);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	r = test::runCommand(test::bin("kitti2rawlog") + " --sequence " + seq.string() + " -o " + emb);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_LT(fs::file_size(ext), fs::file_size(emb) / 100);  // references, not points
+
+	const auto a = readAll(ext), b = readAll(emb);
+	ASSERT_EQ(a.size(), 3u);
+	ASSERT_EQ(b.size(), 3u);
+	for (size_t k = 0; k < 3; k++)
+	{
+		ASSERT_EQ(a[k].points.size(), b[k].points.size());
+		EXPECT_EQ(a[k].points[1000].z, b[k].points[1000].z);
+		ASSERT_TRUE(a[k].groundTruth);  // poses found in dataset/poses/00.txt
+		EXPECT_NEAR(a[k].groundTruth->x(), b[k].groundTruth->x(), 1e-12);
+	}
+}
+
+TEST(Kitti, BadInputIsReported)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto dir = test::tempDir("kitti");
+	fs::create_directories(dir / "velo");
+	std::ofstream(dir / "velo" / "000000.bin", std::ios::binary) << "0123456789";  // 10 bytes
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "velo").string() + " -o " + (dir / "x.rawlog").string());
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("000000.bin': size 10 bytes is not a multiple of 16"), std::string::npos) << r.output;
+	EXPECT_FALSE(fs::exists(dir / "x.rawlog"));
+
+	r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D + "/poses_official.txt -o " + (dir / "y.rawlog").string());
+	EXPECT_EQ(r.exitCode, 2);
+	EXPECT_NE(r.output.find("--poses needs --calib"), std::string::npos) << r.output;
+
+	r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "nothere").string() + " -o " + (dir / "z.rawlog").string());
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("nothere' does not exist"), std::string::npos) << r.output;
+}

@@ -1,0 +1,133 @@
+// Plugin loading, creation by class name, and strict configuration.
+#include <rasterslam/core/config.h>
+#include <rasterslam/core/engine.h>
+#include <rasterslam/core/plugin_loader.h>
+
+#include "test_support.h"
+
+using namespace rasterslam;
+using mrpt::containers::yaml;
+
+namespace
+{
+std::string errorOf(const std::function<void()>& f)
+{
+	try
+	{
+		f();
+	}
+	catch (const std::exception& e)
+	{
+		return e.what();
+	}
+	return "";
+}
+}  // namespace
+
+TEST(PluginLoader, FindsAndRegistersTheBuiltPlugins)
+{
+	auto& loader = PluginLoader::instance();
+	loader.load();
+	const auto classes = loader.registeredClasses();
+	bool gicp = false, levmarq = false;
+	for (const auto& c : classes)
+	{
+		if (c.className == "rasterslam::GicpOdometry")
+		{
+			gicp = true;
+			EXPECT_EQ(c.role, "odometry");
+			EXPECT_NE(c.module.find("librasterslam_plugin_gicp.so"), std::string::npos);
+		}
+		if (c.className == "rasterslam::LevMarqOptimizer")
+		{
+			levmarq = true;
+			EXPECT_EQ(c.role, "optimizer");
+		}
+	}
+	EXPECT_TRUE(gicp);
+	EXPECT_TRUE(levmarq);
+	// Loading again is a no-op, not a second registration.
+	const auto n = loader.loadedModules().size();
+	loader.load();
+	EXPECT_EQ(loader.loadedModules().size(), n);
+}
+
+TEST(PluginLoader, CreatesByNameAndChecksTheRole)
+{
+	auto& loader = PluginLoader::instance();
+	loader.load();
+	auto odo = loader.create<Odometry>("rasterslam::GicpOdometry");
+	ASSERT_TRUE(odo);
+	EXPECT_EQ(odo->role(), "odometry");
+
+	const auto unknown = errorOf([&] { loader.create<Odometry>("rasterslam::NoSuchThing"); });
+	EXPECT_NE(unknown.find("unknown odometry plugin class 'rasterslam::NoSuchThing'"), std::string::npos)
+		<< unknown;
+	EXPECT_NE(unknown.find("rasterslam::GicpOdometry"), std::string::npos) << unknown;  // listed
+
+	const auto wrongRole = errorOf([&] { loader.create<Odometry>("rasterslam::LevMarqOptimizer"); });
+	EXPECT_NE(wrongRole.find("is not a odometry plugin"), std::string::npos) << wrongRole;
+}
+
+TEST(PluginLoader, NamedModuleMissingFromThePathIsAnError)
+{
+	const auto e = errorOf([] { PluginLoader::instance().load({"librasterslam_plugin_nope.so"}); });
+	EXPECT_NE(e.find("librasterslam_plugin_nope.so' not found"), std::string::npos) << e;
+	EXPECT_NE(e.find(RASTERSLAM_BUILD_PLUGIN_DIR), std::string::npos) << e;  // lists the path
+}
+
+TEST(Config, ParamReaderIsStrict)
+{
+	const yaml y = yaml::FromText("a: 2.5\nb: 3\nc: hello\nd: yes\ne: [1, 2.5]\n");
+	{
+		ParamReader p(y, "odometry.params", "cfg.yaml");
+		EXPECT_DOUBLE_EQ(p.getDouble("a", 0), 2.5);
+		EXPECT_EQ(p.getInt("b", 0), 3);
+		EXPECT_EQ(p.getString("c", ""), "hello");
+		EXPECT_TRUE(p.getBool("d", false));
+		EXPECT_EQ(p.getDoubles("e", {}), (std::vector<double>{1, 2.5}));
+		EXPECT_DOUBLE_EQ(p.getDouble("missing", 7.0), 7.0);
+		EXPECT_NO_THROW(p.finish());
+		EXPECT_DOUBLE_EQ(p.inForce()["missing"].as<double>(), 7.0);
+	}
+	{
+		ParamReader p(y, "odometry.params", "cfg.yaml");
+		const auto e = errorOf([&] { p.getInt("a", 0); });  // 2.5 is not an int
+		EXPECT_NE(e.find("cfg.yaml: key 'odometry.params.a': expected an integer, got '2.5'"), std::string::npos) << e;
+		EXPECT_NE(errorOf([&] { p.getDouble("c", 0); }).find("expected a number"), std::string::npos);
+		EXPECT_NE(errorOf([&] { p.getBool("b", 0); }).find("expected true or false"), std::string::npos);
+		EXPECT_NE(errorOf([&] { p.getChoice("c", "x", {"x", "y"}); }).find("expected one of {x, y}"), std::string::npos);
+	}
+	{
+		ParamReader p(y, "odometry.params", "cfg.yaml");
+		p.getDouble("a", 0);
+		const auto e = errorOf([&] { p.finish(); });
+		EXPECT_NE(e.find("unknown key(s) in 'odometry.params': b, c, d, e"), std::string::npos) << e;
+	}
+}
+
+TEST(Config, EngineRejectsBadConfigs)
+{
+	auto engineError = [](const std::string& text) {
+		return errorOf([&] { Engine e(yaml::FromText(text), "test.yaml"); });
+	};
+	EXPECT_EQ(engineError("odometry: {class: rasterslam::GicpOdometry}\n"), "");
+	EXPECT_NE(engineError("odometry: {class: rasterslam::Nope}\n").find("unknown odometry plugin class"), std::string::npos);
+	EXPECT_NE(engineError("optimizer: {class: rasterslam::LevMarqOptimizer}\n").find("section 'odometry' is required"), std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry}\nodometri: {}\n").find("unknown section 'odometri'"), std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel: 0.5}}\n").find("unknown key(s) in 'odometry.params': voxel"), std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: big}}\n").find("'odometry.params.voxel_m': expected a number, got 'big'"), std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: -1}}\n").find("voxel_m: must be > 0"), std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry}\nengine: {on_bad_scan: maybe}\n").find("expected one of {error, skip}"), std::string::npos);
+}
+
+TEST(Config, ShippedConfigsLoad)
+{
+	for (const auto* name : {"default.yaml", "gicp-baseline.yaml"})
+	{
+		const auto path = test::sourcePath(std::string("share/rasterslam/config/") + name);
+		EXPECT_EQ(errorOf([&] { Engine e(loadYamlFile(path), path); }), "") << path;
+	}
+	const auto e = errorOf([] { loadYamlFile("/nonexistent/x.yaml"); });
+	EXPECT_NE(e.find("cannot read config file '/nonexistent/x.yaml'"), std::string::npos) << e;
+}
