@@ -16,13 +16,14 @@ double hillHeight(const Hill& h, double x, double y)
 {
 	const double dx = x - h.x, dy = y - h.y;
 	const double s = (dx * dx + dy * dy) / (h.radius_m * h.radius_m);
-	if (s >= 1) return 0;
+	if (s >= 1)
+		return 0;
 	return h.height_m * (1 - s) * (1 - s);
 }
 }  // namespace
 
 GroundModel::GroundModel(double base_m, Eigen::Vector2d tilt, std::vector<Hill> hills)
-	: base_(base_m), tilt_(tilt), hills_(std::move(hills))
+    : base_(base_m), tilt_(tilt), hills_(std::move(hills))
 {
 	maxSlope_ = tilt_.norm();
 	for (const auto& h : hills_)
@@ -32,7 +33,8 @@ GroundModel::GroundModel(double base_m, Eigen::Vector2d tilt, std::vector<Hill> 
 double GroundModel::height(double x, double y) const
 {
 	double z = base_ + tilt_.x() * x + tilt_.y() * y;
-	for (const auto& h : hills_) z += hillHeight(h, x, y);
+	for (const auto& h : hills_)
+		z += hillHeight(h, x, y);
 	return z;
 }
 
@@ -43,7 +45,8 @@ Eigen::Vector2d GroundModel::gradient(double x, double y) const
 	{
 		const double dx = x - h.x, dy = y - h.y, r2 = h.radius_m * h.radius_m;
 		const double s = (dx * dx + dy * dy) / r2;
-		if (s >= 1) continue;
+		if (s >= 1)
+			continue;
 		// d/dx of H (1 - s)^2 with s = r^2/R^2 is -4 H (1 - s) dx / R^2.
 		const double k = -4 * h.height_m * (1 - s) / r2;
 		g += Eigen::Vector2d(k * dx, k * dy);
@@ -51,8 +54,7 @@ Eigen::Vector2d GroundModel::gradient(double x, double y) const
 	return g;
 }
 
-double GroundModel::intersect(
-	const Eigen::Vector3d& o, const Eigen::Vector3d& d, double tMax) const
+double GroundModel::intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double tMax) const
 {
 	// Only the hills whose disc the ray's XY shadow crosses can matter for this ray.
 	const Hill* near[kMaxRayHills];
@@ -66,7 +68,8 @@ double GroundModel::intersect(
 		double t = dxy2 > 0 ? (mx * d.x() + my * d.y()) / dxy2 : 0;
 		t = std::clamp(t, 0.0, tMax);
 		const double ex = mx - t * d.x(), ey = my - t * d.y();
-		if (ex * ex + ey * ey >= h.radius_m * h.radius_m) continue;
+		if (ex * ex + ey * ey >= h.radius_m * h.radius_m)
+			continue;
 		slope += kHillSlopeFactor * std::abs(h.height_m) / h.radius_m;
 		if (nNear < kMaxRayHills)
 			near[nNear++] = &h;
@@ -88,16 +91,19 @@ double GroundModel::intersect(
 		{
 			const double dx = x - h.x, dy = y - h.y, r2 = h.radius_m * h.radius_m;
 			const double q = (dx * dx + dy * dy) / r2;
-			if (q >= 1) return;
+			if (q >= 1)
+				return;
 			z += h.height_m * (1 - q) * (1 - q);
 			const double k = -4 * h.height_m * (1 - q) / r2;
 			gx += k * dx;
 			gy += k * dy;
 		};
 		if (all)
-			for (const auto& h : hills_) addHill(h);
+			for (const auto& h : hills_)
+				addHill(h);
 		else
-			for (std::size_t i = 0; i < nNear; i++) addHill(*near[i]);
+			for (std::size_t i = 0; i < nNear; i++)
+				addHill(*near[i]);
 		fd = d.z() - gx * d.x() - gy * d.y();
 		return o.z() + t * d.z() - z;
 	};
@@ -106,12 +112,14 @@ double GroundModel::intersect(
 
 	double fd0 = 0;
 	const double f0 = eval(0, fd0);
-	if (f0 <= 0) return 0;
+	if (f0 <= 0)
+		return 0;
 	const double fdPlane = d.z() - tilt_.x() * d.x() - tilt_.y() * d.y();
 	if (!all && nNear == 0)
 	{
 		// A plane: f is linear, solve it exactly.
-		if (fdPlane >= 0) return kInf;
+		if (fdPlane >= 0)
+			return kInf;
 		const double t = -f0 / fdPlane;
 		return t <= tMax ? t : kInf;
 	}
@@ -121,7 +129,8 @@ double GroundModel::intersect(
 	if (d.z() + slope * dxy < 0)
 	{
 		// f' = dz - grad(h).dxy < 0 everywhere: a single crossing, if any, in [0, tMax].
-		if (f(tMax) > 0) return kInf;
+		if (f(tMax) > 0)
+			return kInf;
 	}
 	else
 	{
@@ -129,7 +138,8 @@ double GroundModel::intersect(
 		// jump over a crossing, with a floor of 0.25 m so that grazing rays terminate (a
 		// crossing missed by that floor is a sub-millimetre graze).
 		const double descent = slope * dxy - d.z();
-		if (descent <= 0) return kInf;
+		if (descent <= 0)
+			return kInf;
 		for (;;)
 		{
 			const double tn = std::min(a + std::max(fa / descent, 0.25), tMax);
@@ -139,7 +149,8 @@ double GroundModel::intersect(
 				b = tn;
 				break;
 			}
-			if (tn >= tMax) return kInf;
+			if (tn >= tMax)
+				return kInf;
 			a = tn;
 			fa = fn;
 		}
@@ -148,19 +159,23 @@ double GroundModel::intersect(
 	// Newton's method kept inside the bracket (a bisection whenever a step would leave it):
 	// quadratic convergence on this smooth f, and never lost on a flat stretch.
 	double t = fd0 < 0 && a == 0 ? -f0 / fd0 : 0.5 * (a + b);
-	if (!(t > a && t < b)) t = 0.5 * (a + b);
+	if (!(t > a && t < b))
+		t = 0.5 * (a + b);
 	for (int it = 0; it < 60; it++)
 	{
 		double fd = 0;
 		const double ft = eval(t, fd);
-		if (std::abs(ft) < 1e-9) return t;
+		if (std::abs(ft) < 1e-9)
+			return t;
 		if (ft > 0)
 			a = t;
 		else
 			b = t;
 		double tn = fd < 0 ? t - ft / fd : a - 1;
-		if (!(tn > a && tn < b)) tn = 0.5 * (a + b);
-		if (std::abs(tn - t) < 1e-6 || b - a < 1e-6) return tn;
+		if (!(tn > a && tn < b))
+			tn = 0.5 * (a + b);
+		if (std::abs(tn - t) < 1e-6 || b - a < 1e-6)
+			return tn;
 		t = tn;
 	}
 	return 0.5 * (a + b);

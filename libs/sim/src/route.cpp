@@ -2,7 +2,6 @@
 #include <rasterslam/sim/route.h>
 
 #include <Eigen/Geometry>
-
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -12,14 +11,19 @@ namespace rasterslam::sim
 namespace
 {
 constexpr double kPi = 3.14159265358979323846;
-double wrapPi(double a) { return std::atan2(std::sin(a), std::cos(a)); }
+double wrapPi(double a)
+{
+	return std::atan2(std::sin(a), std::cos(a));
+}
 }  // namespace
 
 Route::Route(const std::vector<Eigen::Vector2d>& wp, bool closed, double turnRadius_m)
-	: closed_(closed)
+    : closed_(closed)
 {
-	if (wp.size() < 2) throw std::invalid_argument("Route: needs at least 2 waypoints");
-	if (!(turnRadius_m >= 0)) throw std::invalid_argument("Route: turn radius must be >= 0");
+	if (wp.size() < 2)
+		throw std::invalid_argument("Route: needs at least 2 waypoints");
+	if (!(turnRadius_m >= 0))
+		throw std::invalid_argument("Route: turn radius must be >= 0");
 	const std::size_t n = wp.size();
 	for (std::size_t i = 0; i < n; i++)
 		if ((wp[(i + 1) % n] - wp[i]).norm() < 1e-6 && (closed || i + 1 < n))
@@ -61,7 +65,8 @@ Route::Route(const std::vector<Eigen::Vector2d>& wp, bool closed, double turnRad
 	const auto addArc = [&](const Corner& c)
 	{
 		const double len = c.radius * std::abs(c.turn);
-		if (len <= 1e-9) return;
+		if (len <= 1e-9)
+			return;
 		pieces_.push_back({length_, len, c.a, c.yawIn, (c.turn > 0 ? 1 : -1) / c.radius});
 		length_ += len;
 	};
@@ -103,23 +108,26 @@ std::vector<Eigen::Vector2d> Route::blockLoop(const TownParams& town, int bx, in
 
 std::vector<Eigen::Vector2d> Route::figureEight(const TownParams& town)
 {
-	if (town.blocks_x < 2) throw std::invalid_argument("figure_eight: needs blocks_x >= 2");
+	if (town.blocks_x < 2)
+		throw std::invalid_argument("figure_eight: needs blocks_x >= 2");
 	const double P = town.pitch();
 	return {{0, 0}, {P, 0}, {P, P}, {2 * P, P}, {2 * P, 0}, {P, 0}, {P, P}, {0, P}};
 }
 
 PlanarPose Route::at(double s) const
 {
-	if (pieces_.empty()) throw std::logic_error("Route::at on an empty route");
+	if (pieces_.empty())
+		throw std::logic_error("Route::at on an empty route");
 	if (closed_)
 	{
 		s = std::fmod(s, length_);
-		if (s < 0) s += length_;
+		if (s < 0)
+			s += length_;
 	}
 	else
 		s = std::clamp(s, 0.0, length_);
-	auto it = std::upper_bound(
-		pieces_.begin(), pieces_.end(), s, [](double v, const Piece& p) { return v < p.s0; });
+	auto it = std::upper_bound(pieces_.begin(), pieces_.end(), s,
+	                           [](double v, const Piece& p) { return v < p.s0; });
 	const Piece& p = *(it == pieces_.begin() ? it : std::prev(it));
 	const double u = std::clamp(s - p.s0, 0.0, p.len);
 	PlanarPose out;
@@ -139,7 +147,8 @@ PlanarPose Route::at(double s) const
 	return out;
 }
 
-mrpt::poses::CPose3D sensorPoseOnGround(const GroundModel& ground, const PlanarPose& p, double height_m)
+mrpt::poses::CPose3D sensorPoseOnGround(const GroundModel& ground, const PlanarPose& p,
+                                        double height_m)
 {
 	const Eigen::Vector2d g = ground.gradient(p.x, p.y);
 	const Eigen::Vector3d zAxis = Eigen::Vector3d(-g.x(), -g.y(), 1).normalized();

@@ -1,7 +1,6 @@
 // Strict reading of scenario files: every key known, every value of the expected type.
-#include <rasterslam/sim/scenario.h>
-
 #include <mrpt/containers/yaml.h>
+#include <rasterslam/sim/scenario.h>
 
 #include <cerrno>
 #include <cmath>
@@ -30,7 +29,8 @@ class Reader
 
 	std::string text(const Node& n, const std::string& key) const
 	{
-		if (!n.isScalar()) fail(key, "expected a scalar value, found a " + n.typeName());
+		if (!n.isScalar())
+			fail(key, "expected a scalar value, found a " + n.typeName());
 		std::string s = n.as<std::string>();
 		// MRPT prints strings back as YAML, quoting some: undo it.
 		if (s.size() >= 2 && (s.front() == '"' || s.front() == '\'') && s.back() == s.front())
@@ -57,24 +57,27 @@ class Reader
 			fail(key, "expected an integer, found '" + s + "'");
 		if (v < lo || v > hi)
 			fail(key, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-						  "], found " + s);
+			              "], found " + s);
 		return v;
 	}
 	bool boolean(const Node& n, const std::string& key) const
 	{
 		const std::string s = text(n, key);
-		if (s == "true" || s == "True" || s == "yes") return true;
-		if (s == "false" || s == "False" || s == "no") return false;
+		if (s == "true" || s == "True" || s == "yes")
+			return true;
+		if (s == "false" || s == "False" || s == "no")
+			return false;
 		fail(key, "expected true or false, found '" + s + "'");
 	}
 
 	using Handler = std::function<void(const Node&, const std::string&)>;
 	/** Calls the handler of every key of map node `n`; an unknown key is an error. */
-	void forEachKey(
-		const Node& n, const std::string& prefix, const std::map<std::string, Handler>& handlers) const
+	void forEachKey(const Node& n, const std::string& prefix,
+	                const std::map<std::string, Handler>& handlers) const
 	{
 		const std::string where = prefix.empty() ? "(top level)" : prefix;
-		if (!n.isMap()) fail(where, "expected a map of keys, found a " + n.typeName());
+		if (!n.isMap())
+			fail(where, "expected a map of keys, found a " + n.typeName());
 		for (const auto& [k, v] : n.asMap())
 		{
 			const std::string key = k.isScalar() ? k.as<std::string>() : "?";
@@ -83,7 +86,8 @@ class Reader
 			if (it == handlers.end())
 			{
 				std::string known;
-				for (const auto& h : handlers) known += (known.empty() ? "" : ", ") + h.first;
+				for (const auto& h : handlers)
+					known += (known.empty() ? "" : ", ") + h.first;
 				fail(full, "unknown key (known here: " + known + ")");
 			}
 			it->second(v, full);
@@ -124,84 +128,90 @@ Scenario loadScenario(const std::string& path)
 	sc.source = path;
 	const Reader r(path);
 	constexpr long long kMaxInt = std::numeric_limits<int>::max();
-	const auto num = [&](double& dst) { return [&r, &dst](const Node& n, const std::string& k) { dst = r.number(n, k); }; };
+	const auto num = [&](double& dst)
+	{ return [&r, &dst](const Node& n, const std::string& k) { dst = r.number(n, k); }; };
 	const auto intIn = [&](int& dst, long long lo, long long hi)
-	{ return [&r, &dst, lo, hi](const Node& n, const std::string& k) { dst = static_cast<int>(r.integer(n, k, lo, hi)); }; };
+	{
+		return [&r, &dst, lo, hi](const Node& n, const std::string& k)
+		{ dst = static_cast<int>(r.integer(n, k, lo, hi)); };
+	};
 
 	TownParams& t = sc.town;
 	const std::map<std::string, Reader::Handler> townKeys = {
-		{"blocks_x", intIn(t.blocks_x, 1, 100)},
-		{"blocks_y", intIn(t.blocks_y, 1, 100)},
-		{"block_size_m", num(t.block_size_m)},
-		{"street_width_m", num(t.street_width_m)},
-		{"sidewalk_m", num(t.sidewalk_m)},
-		{"building_height_min_m", num(t.building_height_min_m)},
-		{"building_height_max_m", num(t.building_height_max_m)},
-		{"trees_per_100m", num(t.trees_per_100m)},
-		{"poles_per_100m", num(t.poles_per_100m)},
-		{"cars_per_100m", num(t.cars_per_100m)},
-		{"hills", intIn(t.hills, 0, 32)},
-		{"max_slope", num(t.max_slope)},
-		{"outskirts_m", num(t.outskirts_m)}};
+	    {"blocks_x", intIn(t.blocks_x, 1, 100)},
+	    {"blocks_y", intIn(t.blocks_y, 1, 100)},
+	    {"block_size_m", num(t.block_size_m)},
+	    {"street_width_m", num(t.street_width_m)},
+	    {"sidewalk_m", num(t.sidewalk_m)},
+	    {"building_height_min_m", num(t.building_height_min_m)},
+	    {"building_height_max_m", num(t.building_height_max_m)},
+	    {"trees_per_100m", num(t.trees_per_100m)},
+	    {"poles_per_100m", num(t.poles_per_100m)},
+	    {"cars_per_100m", num(t.cars_per_100m)},
+	    {"hills", intIn(t.hills, 0, 32)},
+	    {"max_slope", num(t.max_slope)},
+	    {"outskirts_m", num(t.outskirts_m)}};
 	RouteParams& rt = sc.route;
 	bool patternGiven = false;
 	const std::map<std::string, Reader::Handler> routeKeys = {
-		{"pattern",
-		 [&](const Node& n, const std::string& k)
-		 {
-			 rt.pattern = r.text(n, k);
-			 patternGiven = true;
-		 }},
-		{"blocks_x", intIn(rt.blocks_x, 1, 100)},
-		{"blocks_y", intIn(rt.blocks_y, 1, 100)},
-		{"waypoints",
-		 [&](const Node& n, const std::string& k)
-		 {
-			 if (!n.isSequence()) r.fail(k, "expected a list of [x, y] waypoints");
-			 rt.waypoints.clear();
-			 for (const auto& p : n.asSequence()) rt.waypoints.push_back(point2(r, p, k));
-		 }},
-		{"closed", [&](const Node& n, const std::string& k) { rt.closed = r.boolean(n, k); }},
-		{"turn_radius_m", num(rt.turn_radius_m)}};
+	    {"pattern",
+	     [&](const Node& n, const std::string& k)
+	     {
+		     rt.pattern = r.text(n, k);
+		     patternGiven = true;
+	     }},
+	    {"blocks_x", intIn(rt.blocks_x, 1, 100)},
+	    {"blocks_y", intIn(rt.blocks_y, 1, 100)},
+	    {"waypoints",
+	     [&](const Node& n, const std::string& k)
+	     {
+		     if (!n.isSequence())
+			     r.fail(k, "expected a list of [x, y] waypoints");
+		     rt.waypoints.clear();
+		     for (const auto& p : n.asSequence())
+			     rt.waypoints.push_back(point2(r, p, k));
+	     }},
+	    {"closed", [&](const Node& n, const std::string& k) { rt.closed = r.boolean(n, k); }},
+	    {"turn_radius_m", num(rt.turn_radius_m)}};
 	NoiseParams& nz = sc.noise;
 	const std::map<std::string, Reader::Handler> noiseKeys = {
-		{"range_sigma_m", num(nz.range_sigma_m)},
-		{"dropout_prob", num(nz.dropout_prob)},
-		{"intensity_sigma", num(nz.intensity_sigma)}};
+	    {"range_sigma_m", num(nz.range_sigma_m)},
+	    {"dropout_prob", num(nz.dropout_prob)},
+	    {"intensity_sigma", num(nz.intensity_sigma)}};
 
 	const std::map<std::string, Reader::Handler> topKeys = {
-		{"seed",
-		 [&](const Node& n, const std::string& k)
-		 { sc.seed = static_cast<std::uint32_t>(r.integer(n, k, 0, 0xFFFFFFFFll)); }},
-		{"lidar", [&](const Node& n, const std::string& k) { sc.lidar = r.text(n, k); }},
-		{"scans",
-		 [&](const Node& n, const std::string& k)
-		 { sc.scans = static_cast<std::size_t>(r.integer(n, k, 1, kMaxInt)); }},
-		{"rate_hz", num(sc.rate_hz)},
-		{"speed_mps", num(sc.speed_mps)},
-		{"sensor_height_m", num(sc.sensor_height_m)},
-		{"start_stamp_s", num(sc.start_stamp_s)},
-		{"threads", intIn(sc.threads, 1, 64)},
-		{"point_resolution_m", num(sc.point_resolution_m)},
-		{"route",
-		 [&](const Node& n, const std::string& k)
-		 {
-			 // Shorthands: a pattern name, or the list of waypoints itself.
-			 if (n.isScalar())
-			 {
-				 rt.pattern = r.text(n, k);
-				 patternGiven = true;
-			 }
-			 else if (n.isSequence())
-				 routeKeys.at("waypoints")(n, k);
-			 else
-				 r.forEachKey(n, k, routeKeys);
-		 }},
-		{"town", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, townKeys); }},
-		{"noise", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, noiseKeys); }}};
+	    {"seed", [&](const Node& n, const std::string& k)
+	     { sc.seed = static_cast<std::uint32_t>(r.integer(n, k, 0, 0xFFFFFFFFll)); }},
+	    {"lidar", [&](const Node& n, const std::string& k) { sc.lidar = r.text(n, k); }},
+	    {"scans", [&](const Node& n, const std::string& k)
+	     { sc.scans = static_cast<std::size_t>(r.integer(n, k, 1, kMaxInt)); }},
+	    {"rate_hz", num(sc.rate_hz)},
+	    {"speed_mps", num(sc.speed_mps)},
+	    {"sensor_height_m", num(sc.sensor_height_m)},
+	    {"start_stamp_s", num(sc.start_stamp_s)},
+	    {"threads", intIn(sc.threads, 1, 64)},
+	    {"point_resolution_m", num(sc.point_resolution_m)},
+	    {"route",
+	     [&](const Node& n, const std::string& k)
+	     {
+		     // Shorthands: a pattern name, or the list of waypoints itself.
+		     if (n.isScalar())
+		     {
+			     rt.pattern = r.text(n, k);
+			     patternGiven = true;
+		     }
+		     else if (n.isSequence())
+			     routeKeys.at("waypoints")(n, k);
+		     else
+			     r.forEachKey(n, k, routeKeys);
+	     }},
+	    {"town", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, townKeys); }},
+	    {"noise", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, noiseKeys); }}};
 
-	if (!doc.isNullNode()) r.forEachKey(doc.node(), "", topKeys);
-	if (!rt.waypoints.empty() && !patternGiven) rt.pattern = "waypoints";
+	if (!doc.isNullNode())
+		r.forEachKey(doc.node(), "", topKeys);
+	if (!rt.waypoints.empty() && !patternGiven)
+		rt.pattern = "waypoints";
 	if (rt.pattern == "waypoints" && rt.waypoints.size() < 2)
 		r.fail("route.waypoints", "pattern 'waypoints' needs at least 2 waypoints");
 	validateScenario(sc);
@@ -213,38 +223,42 @@ void validateScenario(const Scenario& sc)
 	const Reader r(sc.source.empty() ? "(scenario)" : sc.source);
 	const auto need = [&](bool ok, const char* key, const char* what)
 	{
-		if (!ok) r.fail(key, what);
+		if (!ok)
+			r.fail(key, what);
 	};
 	need(sc.lidar == "hdl64" || sc.lidar == "vlp16", "lidar", "expected hdl64 or vlp16");
 	need(sc.scans >= 1, "scans", "expected >= 1");
 	need(sc.rate_hz > 0 && sc.rate_hz <= 100, "rate_hz", "expected in (0, 100]");
 	need(sc.speed_mps >= 0 && sc.speed_mps <= 50, "speed_mps", "expected in [0, 50]");
-	need(sc.sensor_height_m > 0 && sc.sensor_height_m < 10, "sensor_height_m", "expected in (0, 10)");
+	need(sc.sensor_height_m > 0 && sc.sensor_height_m < 10, "sensor_height_m",
+	     "expected in (0, 10)");
 	need(sc.start_stamp_s >= 0, "start_stamp_s", "expected >= 0");
 	need(sc.threads >= 1, "threads", "expected >= 1");
 	need(sc.point_resolution_m >= 0 && sc.point_resolution_m <= 0.05, "point_resolution_m",
-		 "expected in [0, 0.05]");
+	     "expected in [0, 0.05]");
 	need(sc.route.pattern == "block_loop" || sc.route.pattern == "figure_eight" ||
-			 sc.route.pattern == "waypoints",
-		 "route.pattern", "expected block_loop, figure_eight or waypoints");
+	         sc.route.pattern == "waypoints",
+	     "route.pattern", "expected block_loop, figure_eight or waypoints");
 	need(sc.route.turn_radius_m >= 0, "route.turn_radius_m", "expected >= 0");
 	need(sc.route.blocks_x <= sc.town.blocks_x && sc.route.blocks_y <= sc.town.blocks_y,
-		 "route.blocks_x", "the block loop must fit in the town (route.blocks_x/y <= town.blocks_x/y)");
+	     "route.blocks_x",
+	     "the block loop must fit in the town (route.blocks_x/y <= town.blocks_x/y)");
 	need(sc.route.pattern != "figure_eight" || sc.town.blocks_x >= 2, "route.pattern",
-		 "figure_eight needs town.blocks_x >= 2");
+	     "figure_eight needs town.blocks_x >= 2");
 	need(sc.noise.range_sigma_m >= 0 && sc.noise.range_sigma_m < 1, "noise.range_sigma_m",
-		 "expected in [0, 1)");
+	     "expected in [0, 1)");
 	need(sc.noise.dropout_prob >= 0 && sc.noise.dropout_prob <= 1, "noise.dropout_prob",
-		 "expected in [0, 1]");
+	     "expected in [0, 1]");
 	need(sc.noise.intensity_sigma >= 0 && sc.noise.intensity_sigma <= 1, "noise.intensity_sigma",
-		 "expected in [0, 1]");
+	     "expected in [0, 1]");
 	const TownParams& t = sc.town;
 	need(t.block_size_m >= 2 * t.sidewalk_m + 10, "town.block_size_m",
-		 "expected >= 2 * sidewalk_m + 10");
+	     "expected >= 2 * sidewalk_m + 10");
 	need(t.street_width_m >= 6, "town.street_width_m", "expected >= 6");
 	need(t.sidewalk_m >= 1, "town.sidewalk_m", "expected >= 1");
 	need(t.building_height_min_m > 0 && t.building_height_max_m >= t.building_height_min_m,
-		 "town.building_height_min_m", "expected 0 < building_height_min_m <= building_height_max_m");
+	     "town.building_height_min_m",
+	     "expected 0 < building_height_min_m <= building_height_max_m");
 	need(t.trees_per_100m >= 0, "town.trees_per_100m", "expected >= 0");
 	need(t.poles_per_100m >= 0, "town.poles_per_100m", "expected >= 0");
 	need(t.cars_per_100m >= 0, "town.cars_per_100m", "expected >= 0");

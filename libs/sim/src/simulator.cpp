@@ -26,15 +26,16 @@ std::uint64_t splitmix64(std::uint64_t x)
 }
 }  // namespace
 
-Simulator::Simulator(
-	std::shared_ptr<const World> world, LidarModel lidar, Route route, SimulatorOptions opt)
-	: world_(std::move(world)), lidar_(std::move(lidar)), route_(std::move(route)), opt_(opt)
+Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route route,
+                     SimulatorOptions opt)
+    : world_(std::move(world)), lidar_(std::move(lidar)), route_(std::move(route)), opt_(opt)
 {
-	if (!world_) throw std::invalid_argument("Simulator: no world");
+	if (!world_)
+		throw std::invalid_argument("Simulator: no world");
 	if (!(opt_.rate_hz > 0) || !(opt_.speed_mps >= 0) || opt_.threads < 1 ||
-		!(opt_.point_resolution_m >= 0))
+	    !(opt_.point_resolution_m >= 0))
 		throw std::invalid_argument(
-			"Simulator: needs rate_hz > 0, speed_mps >= 0, threads >= 1, point_resolution_m >= 0");
+		    "Simulator: needs rate_hz > 0, speed_mps >= 0, threads >= 1, point_resolution_m >= 0");
 }
 
 Simulator Simulator::fromScenario(const Scenario& sc)
@@ -48,9 +49,8 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	else if (sc.route.pattern == "waypoints")
 		wp = sc.route.waypoints;
 	else
-		throw std::invalid_argument(
-			sc.source + ": route.pattern '" + sc.route.pattern +
-			"' unknown (known: block_loop, figure_eight, waypoints)");
+		throw std::invalid_argument(sc.source + ": route.pattern '" + sc.route.pattern +
+		                            "' unknown (known: block_loop, figure_eight, waypoints)");
 	SimulatorOptions o;
 	o.noise = sc.noise;
 	o.seed = sc.seed;
@@ -60,9 +60,8 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	o.start_stamp_s = sc.start_stamp_s;
 	o.threads = sc.threads;
 	o.point_resolution_m = sc.point_resolution_m;
-	return Simulator(
-		std::move(world), LidarModel::byName(sc.lidar),
-		Route(wp, sc.route.closed, sc.route.turn_radius_m), o);
+	return Simulator(std::move(world), LidarModel::byName(sc.lidar),
+	                 Route(wp, sc.route.closed, sc.route.turn_radius_m), o);
 }
 
 double Simulator::stamp(std::size_t k) const
@@ -76,10 +75,13 @@ mrpt::poses::CPose3D Simulator::sensorPose(std::size_t k) const
 	return sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
 }
 
-Scan Simulator::scan(std::size_t k) const { return scanFrom(sensorPose(k), k, stamp(k)); }
+Scan Simulator::scan(std::size_t k) const
+{
+	return scanFrom(sensorPose(k), k, stamp(k));
+}
 
-Scan Simulator::scanFrom(
-	const mrpt::poses::CPose3D& T_world_sensor, std::size_t index, double stampSec) const
+Scan Simulator::scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t index,
+                         double stampSec) const
 {
 	const Eigen::Matrix3d R = T_world_sensor.getRotationMatrix().asEigen();
 	const Eigen::Vector3d origin(T_world_sensor.x(), T_world_sensor.y(), T_world_sensor.z());
@@ -109,8 +111,8 @@ Scan Simulator::scanFrom(
 	{
 		for (int c = next++; c < nChunks; c = next++)
 		{
-			std::mt19937_64 rng(splitmix64(
-				splitmix64(opt_.seed) ^ splitmix64(index * 0x100000001B3ull + c)));
+			std::mt19937_64 rng(
+			    splitmix64(splitmix64(opt_.seed) ^ splitmix64(index * 0x100000001B3ull + c)));
 			std::normal_distribution<double> rangeNoise(0, 1), intensityNoise(0, 1);
 			std::uniform_real_distribution<double> unif(0, 1);
 			auto& pts = out[c];
@@ -122,36 +124,46 @@ Scan Simulator::scanFrom(
 				{
 					const Eigen::Vector3d ds(ce[b] * ca[a], ce[b] * sa[a], se[b]);
 					const RayHit hit = world_->raycast(origin, R * ds, maxR);
-					if (!hit.hit() || hit.range < minR) continue;
-					if (nz.dropout_prob > 0 && unif(rng) < nz.dropout_prob) continue;
+					if (!hit.hit() || hit.range < minR)
+						continue;
+					if (nz.dropout_prob > 0 && unif(rng) < nz.dropout_prob)
+						continue;
 					double r = hit.range;
-					if (nz.range_sigma_m > 0) r += nz.range_sigma_m * rangeNoise(rng);
-					if (r < minR || r > maxR) continue;
+					if (nz.range_sigma_m > 0)
+						r += nz.range_sigma_m * rangeNoise(rng);
+					if (r < minR || r > maxR)
+						continue;
 					double inten = nominalIntensity(hit.kind);
-					if (nz.intensity_sigma > 0) inten += nz.intensity_sigma * intensityNoise(rng);
+					if (nz.intensity_sigma > 0)
+						inten += nz.intensity_sigma * intensityNoise(rng);
 					PointXYZI p;
 					p.x = quantize(r * ds.x());
 					p.y = quantize(r * ds.y());
 					p.z = quantize(r * ds.z());
-					p.intensity = static_cast<float>(std::round(std::clamp(inten, 0.0, 1.0) * 256) / 256);
+					p.intensity =
+					    static_cast<float>(std::round(std::clamp(inten, 0.0, 1.0) * 256) / 256);
 					pts.push_back(p);
 				}
 		}
 	};
 	const int nThreads = std::min(opt_.threads, nChunks);
 	std::vector<std::thread> pool;
-	for (int t = 1; t < nThreads; t++) pool.emplace_back(work);
+	for (int t = 1; t < nThreads; t++)
+		pool.emplace_back(work);
 	work();
-	for (auto& th : pool) th.join();
+	for (auto& th : pool)
+		th.join();
 
 	Scan scan;
 	scan.index = index;
 	scan.stamp = stampSec;
 	scan.sensorLabel = "LIDAR";
 	std::size_t total = 0;
-	for (const auto& v : out) total += v.size();
+	for (const auto& v : out)
+		total += v.size();
 	scan.points.reserve(total);
-	for (const auto& v : out) scan.points.insert(scan.points.end(), v.begin(), v.end());
+	for (const auto& v : out)
+		scan.points.insert(scan.points.end(), v.begin(), v.end());
 	scan.groundTruth = T_world_sensor;
 	return scan;
 }

@@ -69,9 +69,8 @@ void addCar(World& w, Rng& rng, double x, double y, double yaw)
 	const double ca = std::cos(yaw), sa = std::sin(yaw);
 	w.addBoxOnGround(x, y, yaw, len / 2, wid / 2, rng.uniform(0.9, 1.1), ObjectKind::Car, 0.3);
 	const double shift = rng.uniform(-0.3, 0.1);
-	w.addBoxOnGround(
-		x + shift * ca, y + shift * sa, yaw, len * 0.28, wid / 2 - 0.1, rng.uniform(1.4, 1.6),
-		ObjectKind::Car, 0.9);
+	w.addBoxOnGround(x + shift * ca, y + shift * sa, yaw, len * 0.28, wid / 2 - 0.1,
+	                 rng.uniform(1.4, 1.6), ObjectKind::Car, 0.9);
 }
 
 /** One side of a block: a frontage line from `a` along unit `u`, of length `len`; `inward`
@@ -89,23 +88,24 @@ void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double 
 	// Sidewalk furniture: poles at the kerb, trees a little further in.
 	const auto scatter = [&](double per100m, auto&& place)
 	{
-		if (per100m <= 0) return;
+		if (per100m <= 0)
+			return;
 		const double spacing = 100.0 / per100m;
 		for (double s = rng.uniform(0.3, 1.0) * spacing; s < side.len - 2; s += spacing)
 			place(std::clamp(s + rng.uniform(-0.2, 0.2) * spacing, 2.0, side.len - 2));
 	};
 	scatter(p.poles_per_100m,
-			[&](double s)
-			{
-				const auto q = side.at(s, 0.5);
-				w.addCylinderOnGround(q.x(), q.y(), 0.1, rng.uniform(5, 8), ObjectKind::Pole);
-			});
+	        [&](double s)
+	        {
+		        const auto q = side.at(s, 0.5);
+		        w.addCylinderOnGround(q.x(), q.y(), 0.1, rng.uniform(5, 8), ObjectKind::Pole);
+	        });
 	scatter(p.trees_per_100m,
-			[&](double s)
-			{
-				const auto q = side.at(s, std::min(1.8, 0.6 * p.sidewalk_m));
-				addTree(w, rng, q.x(), q.y());
-			});
+	        [&](double s)
+	        {
+		        const auto q = side.at(s, std::min(1.8, 0.6 * p.sidewalk_m));
+		        addTree(w, rng, q.x(), q.y());
+	        });
 
 	// Parked cars in the street, 1.1 m off the kerb, never in the intersections.
 	if (p.cars_per_100m > 0)
@@ -113,7 +113,8 @@ void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double 
 		const double occupancy = std::min(1.0, p.cars_per_100m * 6.0 / 100.0);
 		for (double s = 3.5; s < side.len - 3.5; s += 6.0)
 		{
-			if (!rng.chance(occupancy)) continue;
+			if (!rng.chance(occupancy))
+				continue;
 			const auto q = side.at(s, -1.1);
 			addCar(w, rng, q.x(), q.y(), side.yaw() + (rng.chance(0.5) ? 0 : kPi));
 		}
@@ -134,25 +135,27 @@ void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double 
 			{
 				const auto q = side.at(s + gap / 2, setback + 0.15);
 				w.addBoxOnGround(q.x(), q.y(), side.yaw(), gap / 2, 0.15, rng.uniform(1.8, 2.8),
-								 ObjectKind::Wall);
+				                 ObjectKind::Wall);
 			}
 			s += gap;
 			continue;
 		}
 		double width = rng.uniform(8, 20);
-		if (end - s - width < 8) width = end - s;
+		if (end - s - width < 8)
+			width = end - s;
 		const double depth = rng.uniform(std::min(8.0, maxDepth), maxDepth);
 		const double height = rng.uniform(p.building_height_min_m, p.building_height_max_m);
 		const auto q = side.at(s + width / 2, setback + depth / 2);
 		w.addBoxOnGround(q.x(), q.y(), side.yaw(), width / 2, depth / 2, height,
-						 ObjectKind::Building);
+		                 ObjectKind::Building);
 		s += width;
 	}
 }
 
 void check(bool ok, const std::string& what)
 {
-	if (!ok) throw std::invalid_argument("town: " + what);
+	if (!ok)
+		throw std::invalid_argument("town: " + what);
 }
 }  // namespace
 
@@ -163,9 +166,9 @@ World World::generate(const TownParams& p, std::uint32_t seed)
 	check(p.sidewalk_m >= 1, "sidewalk_m must be >= 1");
 	check(p.block_size_m >= 2 * p.sidewalk_m + 10, "block_size_m too small for its sidewalks");
 	check(p.building_height_min_m > 0 && p.building_height_max_m >= p.building_height_min_m,
-		  "building heights must satisfy 0 < min <= max");
+	      "building heights must satisfy 0 < min <= max");
 	check(p.trees_per_100m >= 0 && p.poles_per_100m >= 0 && p.cars_per_100m >= 0,
-		  "densities must be >= 0");
+	      "densities must be >= 0");
 	check(p.hills >= 0 && p.hills <= 32, "hills must be in 0..32");
 	check(p.max_slope >= 0 && p.max_slope <= 0.15, "max_slope must be in [0, 0.15]");
 	check(p.outskirts_m >= 0, "outskirts_m must be >= 0");
@@ -179,11 +182,10 @@ World World::generate(const TownParams& p, std::uint32_t seed)
 			const double x0 = bx * P + hw, y0 = by * P + hw, L = p.block_size_m;
 			const double corner = p.sidewalk_m + std::min(16.0, L / 2 - p.sidewalk_m - 2);
 			// Counter-clockwise sides: inward = u rotated +90 degrees.
-			const Side sides[4] = {
-				{{x0, y0}, {1, 0}, {0, 1}, L},
-				{{x0 + L, y0}, {0, 1}, {-1, 0}, L},
-				{{x0 + L, y0 + L}, {-1, 0}, {0, -1}, L},
-				{{x0, y0 + L}, {0, -1}, {1, 0}, L}};
+			const Side sides[4] = {{{x0, y0}, {1, 0}, {0, 1}, L},
+			                       {{x0 + L, y0}, {0, 1}, {-1, 0}, L},
+			                       {{x0 + L, y0 + L}, {-1, 0}, {0, -1}, L},
+			                       {{x0, y0 + L}, {0, -1}, {1, 0}, L}};
 			for (int k = 0; k < 4; k++)
 				fillSide(w, rng, p, sides[k], k % 2 == 0 ? p.sidewalk_m : corner);
 			// A courtyard tree or two.
@@ -218,7 +220,7 @@ World World::generate(const TownParams& p, std::uint32_t seed)
 				q = {xmin - depth, ymax - (s - 2 * (xmax - xmin) - (ymax - ymin))};
 			if (fence)
 				w.addBoxOnGround(q.x(), q.y(), rng.uniform(0, kPi), halfLen, 0.1,
-								 rng.uniform(1.2, 2.0), ObjectKind::Wall);
+				                 rng.uniform(1.2, 2.0), ObjectKind::Wall);
 			else
 				addTree(w, rng, q.x(), q.y());
 		}

@@ -10,6 +10,7 @@
 #include <mrpt/math/CMatrixFixed.h>
 #include <rasterslam/core/plugin.h>
 
+#include <chrono>
 #include <cmath>
 
 namespace rasterslam
@@ -38,7 +39,7 @@ class GicpOdometry : public Odometry
 
 	// parameters
 	double voxel_m_ = 0.5, minRange_m_ = 2.0, maxRange_m_ = 100.0;
-	double maxCorrespondence_m_ = 1.0, transformationEpsilon_ = 1e-6;
+	double maxCorrespondence_m_ = 1.0, transformationEpsilon_ = 5e-4;
 	int kCorrespondences_ = 20, maxIterations_ = 50, minPoints_ = 100, keyframeEvery_ = 1;
 	double maxFitness_m2_ = 0.5;
 	double infoTranslation_ = 1e4, infoRotation_ = 1e5;
@@ -114,7 +115,9 @@ GicpOdometry::Cloud::Ptr GicpOdometry::preprocess(const Scan& scan) const
 OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*raster*/)
 {
 	OdometryResult r;
+	const auto t0 = std::chrono::steady_clock::now();
 	Cloud::Ptr cloud = preprocess(scan);
+	const double prepMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 	const Eigen::Matrix4f prior = constantVelocity_ ? velocity_ : Eigen::Matrix4f::Identity();
 	auto toPose = [](const Eigen::Matrix4f& T) {
 		mrpt::math::CMatrixDouble44 M;
@@ -154,6 +157,10 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 		Cloud aligned;
 		gicp.align(aligned, prior);
 		nextCov = gicp.sourceCovariances();
+		MRPT_LOG_DEBUG_FMT(
+			"scan %zu: %zu points after filtering, preprocess %.1f ms, align %.1f ms", scan.index,
+			cloud->size(), prepMs,
+			std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() - prepMs);
 		const double fitness = gicp.getFitnessScore(maxCorrespondence_m_);
 		if (!gicp.hasConverged() || !std::isfinite(fitness) || fitness > maxFitness_m2_)
 		{

@@ -10,9 +10,8 @@ namespace rasterslam::sim
 class LidarModel
 {
    public:
-	LidarModel(
-		std::string name, std::vector<double> elevationsDeg, int azimuthSteps, double minRange_m,
-		double maxRange_m);
+	LidarModel(std::string name, std::vector<double> elevationsDeg, int azimuthSteps,
+	           double minRange_m, double maxRange_m);
 
 	/** Velodyne HDL-64E: 64 beams from -24.8 to +2.0 deg, 2083 steps a turn (0.1728 deg),
 	 *  1..120 m. The real sensor's beams are not evenly spaced (two laser blocks with

@@ -1,12 +1,10 @@
 // The vehicle's path: a polyline through waypoints with circular arcs at the corners.
 #pragma once
 
+#include <mrpt/poses/CPose3D.h>
 #include <rasterslam/sim/world.h>
 
-#include <mrpt/poses/CPose3D.h>
-
 #include <Eigen/Core>
-
 #include <vector>
 
 namespace rasterslam::sim
@@ -28,7 +26,8 @@ class Route
 
 	/** A rectangle along the street centre lines around blocks_x x blocks_y blocks from the
 	 *  town's south-west corner, counter-clockwise. */
-	static std::vector<Eigen::Vector2d> blockLoop(const TownParams& town, int blocks_x, int blocks_y);
+	static std::vector<Eigen::Vector2d> blockLoop(const TownParams& town, int blocks_x,
+	                                              int blocks_y);
 	/** Two loops around the two south-western blocks joined through their common street
 	 *  (needs blocks_x >= 2): the middle street is driven twice in the same direction. */
 	static std::vector<Eigen::Vector2d> figureEight(const TownParams& town);
@@ -42,11 +41,11 @@ class Route
    private:
 	struct Piece
 	{
-		double s0;	//!< arc length at the piece's start
+		double s0;  //!< arc length at the piece's start
 		double len;
-		Eigen::Vector2d p0;	 //!< start point
-		double yaw0;  //!< heading at the start
-		double curvature;  //!< 0 for a segment, +-1/R for a left/right arc
+		Eigen::Vector2d p0;  //!< start point
+		double yaw0;         //!< heading at the start
+		double curvature;    //!< 0 for a segment, +-1/R for a left/right arc
 	};
 	std::vector<Piece> pieces_;
 	double length_ = 0;
@@ -56,6 +55,7 @@ class Route
 /** Pose of a sensor mounted `height_m` above the ground on a vehicle at (x, y) heading `yaw`,
  *  with the vehicle's z axis along the ground normal (pitch and roll follow the slope). Frame:
  *  x forward, y left, z up. */
-mrpt::poses::CPose3D sensorPoseOnGround(const GroundModel& ground, const PlanarPose& p, double height_m);
+mrpt::poses::CPose3D sensorPoseOnGround(const GroundModel& ground, const PlanarPose& p,
+                                        double height_m);
 
 }  // namespace rasterslam::sim

@@ -4,7 +4,6 @@
 #include <rasterslam/sim/world.h>
 
 #include <Eigen/Core>
-
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -1,13 +1,12 @@
 // Turns a world, a LiDAR and a route into scans with ground truth.
 #pragma once
 
+#include <mrpt/poses/CPose3D.h>
 #include <rasterslam/core/types.h>
 #include <rasterslam/sim/lidar_model.h>
 #include <rasterslam/sim/route.h>
 #include <rasterslam/sim/scenario.h>
 #include <rasterslam/sim/world.h>
-
-#include <mrpt/poses/CPose3D.h>
 
 #include <cstddef>
 #include <cstdint>
@@ -32,12 +31,14 @@ struct SimulatorOptions
 };
 
 /** Scans are instantaneous: every ray of a sweep leaves from the same pose (no motion
- *  distortion). Intensities are rounded to 1/256, as a sensor's 8-bit value. Random draws are seeded per (seed, scan index, block of azimuths), so a scan
- *  depends only on its inputs, not on the thread count or on the scans before it. */
+ *  distortion). Intensities are rounded to 1/256, as a sensor's 8-bit value. Random draws are
+ * seeded per (seed, scan index, block of azimuths), so a scan depends only on its inputs, not on
+ * the thread count or on the scans before it. */
 class Simulator
 {
    public:
-	Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route route, SimulatorOptions opt);
+	Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route route,
+	          SimulatorOptions opt);
 	/** Builds the town, the route and the LiDAR that the scenario describes. */
 	static Simulator fromScenario(const Scenario& sc);
 
@@ -47,7 +48,8 @@ class Simulator
 	mrpt::poses::CPose3D sensorPose(std::size_t k) const;
 	double stamp(std::size_t k) const;
 	/** A scan from any sensor pose (points in the sensor frame; groundTruth = the pose). */
-	Scan scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t index, double stamp) const;
+	Scan scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t index,
+	              double stamp) const;
 
 	const World& world() const { return *world_; }
 	const LidarModel& lidar() const { return lidar_; }

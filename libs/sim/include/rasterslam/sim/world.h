@@ -3,7 +3,6 @@
 #pragma once
 
 #include <Eigen/Core>
-
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -64,7 +63,7 @@ class GroundModel
 
 enum class ShapeType : std::uint8_t
 {
-	Box,  //!< yaw-rotated box: half extents a (along yaw), b; z in [zmin, zmax]
+	Box,       //!< yaw-rotated box: half extents a (along yaw), b; z in [zmin, zmax]
 	Cylinder,  //!< vertical: radius a; z in [zmin, zmax]
 	Ellipsoid  //!< vertical axis: horizontal radius a, vertical radius b, centre (cx, cy, cz)
 };
@@ -127,16 +126,16 @@ class World
 	void add(const Shape& s);
 	/** Shapes standing on the ground at their centre: their base is sunk by the ground's
 	 *  rise under the footprint, so that no gap shows on a slope. */
-	void addBoxOnGround(
-		double cx, double cy, double yaw, double halfLength, double halfWidth, double height,
-		ObjectKind kind, double clearance = 0);
+	void addBoxOnGround(double cx, double cy, double yaw, double halfLength, double halfWidth,
+	                    double height, ObjectKind kind, double clearance = 0);
 	void addCylinderOnGround(double cx, double cy, double radius, double height, ObjectKind kind);
 	/** An ellipsoid whose lowest point is `bottom` above the ground at (cx, cy). */
-	void addEllipsoidOnGround(
-		double cx, double cy, double bottom, double radiusXY, double radiusZ, ObjectKind kind);
+	void addEllipsoidOnGround(double cx, double cy, double bottom, double radiusXY, double radiusZ,
+	                          ObjectKind kind);
 
 	/** Nearest surface along origin + t * dir (dir unit) with 0 < t <= maxRange. */
-	RayHit raycast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double maxRange) const;
+	RayHit raycast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+	               double maxRange) const;
 
 	const GroundModel& ground() const { return ground_; }
 	const std::vector<Shape>& shapes() const { return shapes_; }

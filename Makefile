@@ -1,0 +1,37 @@
+# Quick start (a fresh Debian 12 machine):
+#   make demo   installs what is missing, builds, simulates a town drive and runs SLAM on it
+#   make test   installs what is missing, builds and runs the whole test suite
+BUILD ?= build
+JOBS ?= $(shell nproc)
+DEMO_SCENARIO ?= rawlogs/town-loop.yaml
+DEMO_RAWLOG ?= $(BUILD)/rawlogs/town-loop.rawlog
+DEMO_OUT ?= out/demo
+
+.PHONY: all deps configure build demo test clean
+
+all: build
+
+deps:
+	@bash scripts/install-deps.sh
+
+configure: deps
+	@cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+
+build: configure
+	@cmake --build $(BUILD) -j $(JOBS)
+
+$(DEMO_RAWLOG): $(DEMO_SCENARIO) | build
+	@mkdir -p $(dir $@)
+	$(BUILD)/bin/rasterslam-sim --scenario $(DEMO_SCENARIO) -o $@
+
+demo: build
+	@$(MAKE) --no-print-directory $(DEMO_RAWLOG)
+	$(BUILD)/bin/rasterslam run --rawlog $(DEMO_RAWLOG) --out $(DEMO_OUT)
+	$(BUILD)/bin/rasterslam-eval traj --gt $(DEMO_OUT)/groundtruth.tum --est $(DEMO_OUT)/trajectory.tum
+	@echo "demo: outputs in $(DEMO_OUT)/ (trajectory.tum, trajectory.kitti, timings.csv, run.yaml)"
+
+test: build
+	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+clean:
+	rm -rf $(BUILD) out
