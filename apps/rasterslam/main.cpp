@@ -16,7 +16,7 @@ const char* kUsage = R"(rasterslam: lifelong 3D-LiDAR SLAM on rasterized elevati
 
 usage:
   rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] [--last N]
-                 [--realtime [--rate R]] [--sensor LABEL] [--quiet | --verbose]
+                 [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--quiet | --verbose]
   rasterslam list-plugins
   rasterslam --help | --version
 
@@ -30,6 +30,7 @@ run options:
   --realtime      play scans at their time stamps; the summary counts late scans
   --rate R        clock scale for --realtime (2 = twice as fast; default 1)
   --sensor LABEL  use only scans with this sensor label
+  --save-images   write each scan's elevation image to DIR/images/NNNNNN.png
   --quiet         only errors and the final summary;  --verbose: debug logging
 
 Plugins are searched in $RASTERSLAM_PLUGIN_PATH (colon-separated), <bin>/../lib/rasterslam/

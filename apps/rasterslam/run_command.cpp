@@ -119,7 +119,7 @@ int runCommand(int argc, char** argv)
 {
 	std::string rawlog, outDir, configPath, sensor;
 	RunOptions opts;
-	bool quiet = false, verbose = false;
+	bool quiet = false, verbose = false, saveImages = false;
 	for (int i = 1; i < argc; i++)
 	{
 		const std::string a = argv[i];
@@ -148,6 +148,8 @@ int runCommand(int argc, char** argv)
 		}
 		else if (a == "--sensor")
 			sensor = value();
+		else if (a == "--save-images")
+			saveImages = true;
 		else if (a == "--quiet")
 			quiet = true;
 		else if (a == "--verbose")
@@ -155,7 +157,7 @@ int runCommand(int argc, char** argv)
 		else if (a == "-h" || a == "--help")
 		{
 			std::cout << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
-						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--quiet|--verbose]\n"
+						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--quiet|--verbose]\n"
 						 "(rasterslam --help explains every option)\n";
 			return 0;
 		}
@@ -178,7 +180,7 @@ int runCommand(int argc, char** argv)
 		if (configPath.empty()) configPath = findDefaultConfig();
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);
-		engine->setMinLoggingLevel(logLevel);
+		engine->setLogLevel(logLevel);
 		io::RawlogSourceOptions so;
 		so.sensorLabel = sensor;
 		source = std::make_unique<io::RawlogSource>(rawlog, so);
@@ -198,6 +200,20 @@ int runCommand(int argc, char** argv)
 
 	Progress progress(quiet);
 	opts.onScan = [&](const ScanRecord& r, double frac) { progress.update(r, frac); };
+	std::string imageError;
+	if (saveImages)
+	{
+		const fs::path imgDir = fs::path(outDir) / "images";
+		fs::create_directories(imgDir);
+		opts.onRaster = [&, imgDir](const Scan& s, const RasterFrame& f) {
+			const auto path = imgDir / mrpt::format("%06zu.png", s.index);
+			const auto tmp = imgDir / mrpt::format(".%06zu.png.tmp.png", s.index);
+			if (!f.image.saveToFile(tmp.string()) && imageError.empty())
+				imageError = "cannot write image '" + path.string() + "'";
+			else
+				fs::rename(tmp, path);
+		};
+	}
 	std::string runError;
 	try
 	{
@@ -209,6 +225,7 @@ int runCommand(int argc, char** argv)
 	}
 	progress.done();
 	if (!res.error.empty()) runError = res.error;
+	if (runError.empty() && !imageError.empty()) runError = imageError;
 
 	// Summary figures.
 	std::vector<double> total, odo, ras, rd;

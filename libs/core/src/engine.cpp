@@ -123,6 +123,15 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		makeRole(cfg, "optimizer", CLASS_ID(Optimizer), false));
 }
 
+void Engine::setLogLevel(mrpt::system::VerbosityLevel level)
+{
+	setMinLoggingLevel(level);
+	for (Plugin* p : std::initializer_list<Plugin*>{
+			 rasterizer_.get(), odometry_.get(), mapManager_.get(), loopDetector_.get(),
+			 optimizer_.get()})
+		if (p) p->setMinLoggingLevel(level);
+}
+
 RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 {
 	RunResult res;
@@ -198,6 +207,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			rasterizer_->rasterize(*scan, raster);
 			rasterPtr = &raster;
 			rec.ms.rasterize = msSince(t0);
+			if (opts.onRaster) opts.onRaster(*scan, raster);
 		}
 
 		const auto tOdo = Clock::now();
@@ -207,7 +217,10 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		rec.inliers = odo.inliers;
 		if (odo.status == TrackingStatus::Lost) ++res.lost;
 		if (!haveKf) currPose = mrpt::poses::CPose3D();
-		else currPose = currPose + odo.T_prev_curr;
+		else if (odo.T_kf_curr)
+			currPose = lastKfPose + *odo.T_kf_curr;
+		else
+			currPose = currPose + odo.T_prev_curr;
 		++stepsSinceKf;
 
 		if (!haveKf || odo.keyframe)
@@ -218,8 +231,10 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			{
 				mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
 				e.mean = currPose - lastKfPose;
-				// Information of a chain of n steps is roughly 1/n of one step's.
-				e.cov_inv = odo.information * (1.0 / static_cast<double>(stepsSinceKf));
+				// Information of a chain of n steps is roughly 1/n of one step's; an odometry
+				// that tracks against the keyframe gives the edge's own information.
+				e.cov_inv = odo.information;
+				if (!odo.T_kf_curr) e.cov_inv *= 1.0 / static_cast<double>(stepsSinceKf);
 				graph.insertEdge(lastKf, id, e);
 			}
 			lastKf = id;
@@ -229,7 +244,14 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			rec.keyframe = true;
 			++res.keyframes;
 
-			KeyframeInfo kf{id, scan->index, scan->stamp, currPose};
+			KeyframeInfo kf{id, scan->index, scan->stamp, currPose, odo.keyframeData};
+			if (kf.data)
+			{
+				kf.data->id = id;
+				kf.data->scanIndex = scan->index;
+				kf.data->stamp = scan->stamp;
+				kf.data->pose = currPose;
+			}
 			if (mapManager_)
 			{
 				const auto t0 = Clock::now();

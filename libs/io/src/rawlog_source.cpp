@@ -16,6 +16,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <stdexcept>
 
 namespace rasterslam::io
@@ -199,7 +200,26 @@ struct RawlogSource::Impl
 {
 	mrpt::io::CFileGZInputStream file;
 	std::unique_ptr<CountingStream> counting;
+	uint64_t fileSize = 0;
+	/** Uncompressed size modulo 2^32 from the gzip trailer (ISIZE), when gzip. */
+	std::optional<uint32_t> gzipIsize;
 };
+
+namespace
+{
+/** Reads the gzip magic and, for a single-member gzip file, its trailer's ISIZE field. */
+std::optional<uint32_t> gzipTrailerSize(const std::string& path, uint64_t size)
+{
+	std::ifstream f(path, std::ios::binary);
+	unsigned char magic[2] = {0, 0};
+	if (size < 18 || !f.read(reinterpret_cast<char*>(magic), 2) || magic[0] != 0x1f || magic[1] != 0x8b)
+		return std::nullopt;
+	unsigned char t[4];
+	f.seekg(static_cast<std::streamoff>(size - 4));
+	if (!f.read(reinterpret_cast<char*>(t), 4)) return std::nullopt;
+	return uint32_t(t[0]) | uint32_t(t[1]) << 8 | uint32_t(t[2]) << 16 | uint32_t(t[3]) << 24;
+}
+}  // namespace
 
 RawlogSource::RawlogSource(const std::string& path, RawlogSourceOptions opts)
 	: impl_(std::make_unique<Impl>()), path_(path), opts_(std::move(opts))
@@ -213,15 +233,25 @@ RawlogSource::RawlogSource(const std::string& path, RawlogSourceOptions opts)
 	if (!std::ifstream(path).good() || !impl_->file.open(path))
 		throw std::runtime_error("cannot open rawlog '" + path + "': not readable");
 	impl_->counting = std::make_unique<CountingStream>(impl_->file);
+	impl_->fileSize = std::filesystem::file_size(path, ec);
+	impl_->gzipIsize = gzipTrailerSize(path, impl_->fileSize);
 }
 
 RawlogSource::~RawlogSource() = default;
 
 double RawlogSource::progress() const
 {
-	const auto total = impl_->file.getTotalBytesCount();
+	// Progress in uncompressed bytes: for gzip the total is ISIZE (size mod 2^32) plus the
+	// multiple of 2^32 that makes it at least the compressed size and the bytes already read.
+	const uint64_t done = impl_->counting->count();
+	uint64_t total = impl_->fileSize;
+	if (impl_->gzipIsize)
+	{
+		total = *impl_->gzipIsize;
+		while (total < impl_->fileSize || total < done) total += (uint64_t(1) << 32);
+	}
 	if (total == 0) return -1;
-	return std::min(1.0, static_cast<double>(impl_->file.getPosition()) / total);
+	return std::min(1.0, static_cast<double>(done) / static_cast<double>(total));
 }
 
 void RawlogSource::attachGroundTruth(int64_t ticks, const mrpt::poses::CPose3D& pose)

@@ -44,6 +44,8 @@ struct RunOptions
 	double rate = 1.0;
 	/** Called after every processed scan. */
 	std::function<void(const ScanRecord&, double progress)> onScan;
+	/** Called with every rasterized image (e.g. to save it), when a rasterizer is set. */
+	std::function<void(const Scan&, const RasterFrame&)> onRaster;
 };
 
 struct RunResult
@@ -70,6 +72,9 @@ class Engine : public mrpt::system::COutputLogger
 	Engine(const mrpt::containers::yaml& config, const std::string& configSource);
 
 	RunResult run(ScanSource& source, const RunOptions& opts);
+
+	/** Sets the logging level of the engine and of every plugin it created. */
+	void setLogLevel(mrpt::system::VerbosityLevel level);
 
 	/** The whole configuration with every parameter in force (defaults filled in). */
 	const mrpt::containers::yaml& configInForce() const { return inForce_; }

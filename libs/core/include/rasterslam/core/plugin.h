@@ -8,8 +8,10 @@
 #include <mrpt/rtti/CObject.h>
 #include <mrpt/system/COutputLogger.h>
 #include <rasterslam/core/config.h>
+#include <rasterslam/core/keyframe.h>
 #include <rasterslam/core/types.h>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +43,10 @@ class Plugin : public mrpt::rtti::CObject, public mrpt::system::COutputLogger
 /** An image made from a scan, with the 3D point behind each pixel for back-projection. */
 struct RasterFrame
 {
+	/** Ground plane found in the scan, n.p + d = height above ground (n unit, up). */
+	float groundNormal[3] = {0, 0, 1};
+	float groundD = 0;
+	bool groundValid = false;
 	mrpt::img::CImage image;  //!< 8-bit greyscale
 	/** Row-major, one entry a pixel: index into Scan::points, or -1 for an empty pixel. */
 	std::vector<int32_t> pixelToPoint;
@@ -74,6 +80,12 @@ struct OdometryResult
 	/** Information matrix of T_prev_curr, order (x y z yaw pitch roll) as MRPT's 3D graphs. */
 	mrpt::math::CMatrixDouble66 information = mrpt::math::CMatrixDouble66::Identity();
 	std::string message;  //!< why, when not Ok
+	/** When `keyframe` is set, what the odometry saw there (features and 3D points); the
+	 *  engine fills in the id and pose. Null for odometries without features (GICP). */
+	Keyframe::Ptr keyframeData;
+	/** Motion of the scan relative to the last keyframe, when the odometry tracks against
+	 *  keyframes (more precise than chaining T_prev_curr); unset otherwise. */
+	std::optional<mrpt::poses::CPose3D> T_kf_curr;
 };
 
 class Odometry : public Plugin
@@ -92,6 +104,7 @@ struct KeyframeInfo
 	std::size_t scanIndex = 0;
 	double stamp = 0;
 	mrpt::poses::CPose3D pose;  //!< current estimate in the map frame
+	Keyframe::Ptr data;  //!< features seen there, when the odometry provides them
 };
 
 class MapManager : public Plugin

@@ -1,0 +1,35 @@
+// A keyframe: the pose-graph node the tracking creates, with what was seen there.
+#pragma once
+
+#include <mrpt/poses/CPose3D.h>
+#include <mrpt/serialization/CSerializable.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace rasterslam
+{
+/** Paper, "Laser Pose Estimation": "Each keyframe stores the 6dof pose and 3d values of all
+ *  the features observed at that position." Features are ORB keypoints of the keyframe's
+ *  elevation image: image position, octave, angle, response, 32-byte descriptor and the 3D
+ *  point behind the pixel (vehicle frame of the keyframe). Serialized with a version. */
+class Keyframe : public mrpt::serialization::CSerializable
+{
+	DEFINE_SERIALIZABLE(Keyframe, rasterslam)
+
+   public:
+	uint64_t id = 0;  //!< pose-graph node id
+	uint64_t scanIndex = 0;
+	double stamp = 0;
+	mrpt::poses::CPose3D pose;  //!< in the map frame
+
+	std::vector<float> u, v, angle, response;  //!< one entry a feature
+	std::vector<uint8_t> octave;
+	std::vector<float> xyz;  //!< 3 floats a feature
+	std::vector<uint8_t> descriptors;  //!< 32 bytes a feature
+
+	std::size_t size() const { return u.size(); }
+	bool operator==(const Keyframe& o) const;
+};
+
+}  // namespace rasterslam

@@ -1,0 +1,44 @@
+#include <mrpt/core/initializer.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/serialization/stl_serialization.h>
+#include <rasterslam/core/keyframe.h>
+
+using namespace rasterslam;
+
+IMPLEMENTS_SERIALIZABLE(Keyframe, mrpt::serialization::CSerializable, rasterslam)
+
+MRPT_INITIALIZER(register_rasterslam_core_classes)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::Keyframe));
+}
+
+uint8_t Keyframe::serializeGetVersion() const { return 0; }
+
+void Keyframe::serializeTo(mrpt::serialization::CArchive& out) const
+{
+	out << id << scanIndex << stamp << pose << u << v << angle << response << octave << xyz
+		<< descriptors;
+}
+
+void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
+{
+	switch (version)
+	{
+		case 0:
+			in >> id >> scanIndex >> stamp >> pose >> u >> v >> angle >> response >> octave >> xyz >>
+				descriptors;
+			break;
+		default: MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+	}
+	const std::size_t n = u.size();
+	if (v.size() != n || angle.size() != n || response.size() != n || octave.size() != n ||
+		xyz.size() != 3 * n || descriptors.size() != 32 * n)
+		THROW_EXCEPTION("rasterslam::Keyframe: inconsistent feature arrays in the stream");
+}
+
+bool Keyframe::operator==(const Keyframe& o) const
+{
+	return id == o.id && scanIndex == o.scanIndex && stamp == o.stamp && pose == o.pose && u == o.u &&
+		v == o.v && angle == o.angle && response == o.response && octave == o.octave && xyz == o.xyz &&
+		descriptors == o.descriptors;
+}

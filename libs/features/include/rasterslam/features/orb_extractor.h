@@ -1,0 +1,45 @@
+// ORB features spread over the image (paper, "Visual Odometry": 8 scale levels, grid cells,
+// an adaptive FAST threshold so that every image yields enough features).
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+
+#include <vector>
+
+namespace rasterslam::features
+{
+struct OrbParams
+{
+	int numFeatures = 2000;  //!< features kept per image
+	int gridCols = 8, gridRows = 8;  //!< each cell keeps its share of the strongest
+	int fastThreshold = 20;  //!< first FAST threshold tried...
+	int minFastThreshold = 5;  //!< ...halved down to this while too few corners are found
+	int levels = 8;
+	float scaleFactor = 1.2f;
+	int edgeThreshold = 31;
+	int patchSize = 31;
+};
+
+class OrbExtractor
+{
+   public:
+	explicit OrbExtractor(const OrbParams& p = {});
+	/** Detects and describes; `descriptors` is N x 32 CV_8U, one row a keypoint. */
+	void extract(const cv::Mat& image, std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors);
+	const OrbParams& params() const { return p_; }
+	/** FAST threshold used by the last call. */
+	int lastThreshold() const { return lastThreshold_; }
+
+   private:
+	OrbParams p_;
+	cv::Ptr<cv::ORB> orb_;
+	int lastThreshold_ = 0;
+};
+
+/** Keeps at most `n` keypoints, each grid cell first taking its share of the strongest, the
+ *  remaining places going to the strongest left over. */
+std::vector<cv::KeyPoint> distributeOverGrid(
+	const std::vector<cv::KeyPoint>& kps, int width, int height, int cols, int rows, int n);
+
+}  // namespace rasterslam::features

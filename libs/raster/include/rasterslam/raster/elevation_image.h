@@ -1,0 +1,66 @@
+// Projection of a scan (or of a local map's points) into a greyscale elevation image.
+#pragma once
+
+#include <rasterslam/core/plugin.h>
+#include <rasterslam/raster/ground_plane.h>
+
+#include <string>
+#include <vector>
+
+namespace rasterslam::raster
+{
+enum class ProjectionMode
+{
+	/** Orthographic bird's-eye view: a fixed number of metres per pixel. */
+	Bev,
+	/** The paper's pinhole model, equation (1): z_i = K R (I|t) z_l, a camera above the
+	 *  sensor looking down with its z axis (the optical axis) along the LiDAR's -z. */
+	Pinhole
+};
+
+struct RasterParams
+{
+	ProjectionMode mode = ProjectionMode::Bev;
+	/** Outlier removal: points outside this horizontal range window are dropped. */
+	double minRange_m = 2.0, maxRange_m = 50.0;
+	/** Points more than this below the ground plane are outliers (reflections, noise). */
+	double belowGround_m = 0.5;
+	/** Ground removal: points within this height of the plane are ground. */
+	bool removeGround = true;
+	double groundThreshold_m = 0.25;
+	/** Height of the sensor above the ground, used when no ground plane was found. */
+	double sensorHeight_m = 1.73;
+	/** Grey levels: height above ground mapped linearly from [greyMin_m, greyMax_m] to
+	 *  1..255 (0 marks an empty pixel); with `equalize`, the levels of the occupied pixels
+	 *  are then histogram-equalized, which spreads the contrast FAST and ORB see. */
+	double greyMin_m = 0.0, greyMax_m = 8.0;
+	bool equalize = true;
+	/** BEV: metres per pixel; the image covers +-maxRange_m around the sensor. */
+	double resolution_m = 0.2;
+	/** Pinhole: image size (square) and camera height above the sensor; the focal length
+	 *  makes the ground at +-maxRange_m reach the image border. */
+	int pinholeSize_px = 500;
+	double cameraHeight_m = 20.0;
+};
+
+struct RasterStats
+{
+	std::size_t input = 0, outliers = 0, ground = 0, projected = 0, pixels = 0;
+	Plane plane;
+};
+
+/** Projects `pts` (sensor/vehicle frame) into `out`: an 8-bit image whose grey level encodes
+ *  the height above the ground of the highest point of each pixel, and for each pixel the
+ *  index of that point in `pts` (-1 when empty). `ground` may be invalid (then heights are
+ *  z + sensorHeight_m). */
+RasterStats rasterizeElevation(
+	const std::vector<PointXYZI>& pts, const Plane& ground, const RasterParams& p, RasterFrame& out);
+
+/** Pixel (u, v) of a point for the given parameters (floating point; may lie outside). */
+bool projectPoint(const RasterParams& p, float x, float y, float z, float& u, float& v);
+
+/** The point behind a pixel, or behind the nearest occupied pixel within `radius_px`
+ *  (keypoints sit on corners, next to empty pixels). Returns -1 when there is none. */
+int32_t pointAtPixel(const RasterFrame& f, float u, float v, int radius_px = 1);
+
+}  // namespace rasterslam::raster

@@ -1,0 +1,43 @@
+// RANSAC ground-plane detection (paper, "Laser Pose Estimation": the rings a multi-beam LiDAR
+// draws on the ground become outliers once projected, so the ground is removed first).
+#pragma once
+
+#include <Eigen/Core>
+#include <rasterslam/core/types.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace rasterslam::raster
+{
+struct GroundParams
+{
+	/** Only points below this height (sensor frame, m) and within this horizontal range are
+	 *  candidates: the ground near the vehicle. */
+	double candidateMaxZ_m = -1.0;
+	double candidateMaxRange_m = 30.0;
+	/** The plane is fitted on at most this many candidates (an even subsample). */
+	int maxCandidates = 1500;
+	int iterations = 60;
+	/** Inlier distance to the plane, m. */
+	double inlierThreshold_m = 0.15;
+	/** Reject hypotheses whose normal is tilted more than this from the sensor's z axis. */
+	double maxTilt_deg = 20.0;
+};
+
+/** A plane n.p + d = 0 with n a unit vector pointing up: n.p + d is the height above it. */
+struct Plane
+{
+	Eigen::Vector3f n = Eigen::Vector3f::UnitZ();
+	float d = 0;
+	bool valid = false;
+	int inliers = 0;  //!< among the candidates
+	float height(const PointXYZI& p) const { return n.x() * p.x + n.y() * p.y + n.z() * p.z + d; }
+};
+
+/** Fits the ground plane by RANSAC on a subsample of candidate points, then refines it by
+ *  least squares on the inliers. Deterministic for a given seed. Returns valid=false when
+ *  there are fewer than 3 candidates or no hypothesis passes the tilt check. */
+Plane fitGroundPlane(const std::vector<PointXYZI>& pts, const GroundParams& p, uint32_t seed);
+
+}  // namespace rasterslam::raster

@@ -1,0 +1,143 @@
+#include <mrpt/img/CImage.h>
+#include <rasterslam/raster/elevation_image.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/core.hpp>
+
+namespace rasterslam::raster
+{
+namespace
+{
+int imageSize(const RasterParams& p)
+{
+	if (p.mode == ProjectionMode::Pinhole) return p.pinholeSize_px;
+	return static_cast<int>(std::ceil(2 * p.maxRange_m / p.resolution_m));
+}
+}  // namespace
+
+bool projectPoint(const RasterParams& p, float x, float y, float z, float& u, float& v)
+{
+	const float size = static_cast<float>(imageSize(p));
+	if (p.mode == ProjectionMode::Bev)
+	{
+		// Forward (+x) is up in the image, left (+y) is left.
+		const float inv = static_cast<float>(1.0 / p.resolution_m), ext = static_cast<float>(p.maxRange_m);
+		u = (ext - y) * inv;
+		v = (ext - x) * inv;
+		return true;
+	}
+	// Equation (1): p_cam = R (p_l + t), t = (0, 0, -H): x_cam = -y, y_cam = -x, z_cam = H - z;
+	// then K: u = f x_cam / z_cam + c, v = f y_cam / z_cam + c.
+	const float H = static_cast<float>(p.cameraHeight_m);
+	const float zc = H - z;
+	if (zc < 0.5f) return false;  // at or above the camera
+	const float f = static_cast<float>(0.5 * size * (p.cameraHeight_m + p.sensorHeight_m) / p.maxRange_m);
+	const float c = 0.5f * size;
+	u = f * (-y) / zc + c;
+	v = f * (-x) / zc + c;
+	return true;
+}
+
+RasterStats rasterizeElevation(
+	const std::vector<PointXYZI>& pts, const Plane& ground, const RasterParams& p, RasterFrame& out)
+{
+	RasterStats st;
+	st.input = pts.size();
+	st.plane = ground;
+	const int size = imageSize(p);
+	const std::size_t npix = static_cast<std::size_t>(size) * size;
+	std::vector<float> top(npix, -std::numeric_limits<float>::infinity());
+	out.pixelToPoint.assign(npix, -1);
+
+	const float rmin2 = static_cast<float>(p.minRange_m * p.minRange_m);
+	const float rmax2 = static_cast<float>(p.maxRange_m * p.maxRange_m);
+	const float gthr = static_cast<float>(p.groundThreshold_m), below = static_cast<float>(-p.belowGround_m);
+	const float h0 = static_cast<float>(p.sensorHeight_m);
+	for (std::size_t i = 0; i < pts.size(); i++)
+	{
+		const auto& q = pts[i];
+		const float r2 = q.x * q.x + q.y * q.y;
+		if (r2 < rmin2 || r2 > rmax2)
+		{
+			++st.outliers;
+			continue;
+		}
+		const float h = ground.valid ? ground.height(q) : q.z + h0;
+		if (h < below)
+		{
+			++st.outliers;
+			continue;
+		}
+		if (p.removeGround && h < gthr)
+		{
+			++st.ground;
+			continue;
+		}
+		float u, v;
+		if (!projectPoint(p, q.x, q.y, q.z, u, v)) continue;
+		const int col = static_cast<int>(std::floor(u)), row = static_cast<int>(std::floor(v));
+		if (col < 0 || row < 0 || col >= size || row >= size) continue;
+		++st.projected;
+		const std::size_t k = static_cast<std::size_t>(row) * size + col;
+		if (h > top[k])
+		{
+			top[k] = h;
+			out.pixelToPoint[k] = static_cast<int32_t>(i);
+		}
+	}
+
+	cv::Mat img(size, size, CV_8UC1, cv::Scalar(0));
+	const float g0 = static_cast<float>(p.greyMin_m), gscale = static_cast<float>(254.0 / (p.greyMax_m - p.greyMin_m));
+	std::array<int, 256> hist{};
+	for (std::size_t k = 0; k < npix; k++)
+	{
+		if (out.pixelToPoint[k] < 0) continue;
+		const float g = std::clamp((top[k] - g0) * gscale, 0.0f, 254.0f);
+		const auto level = static_cast<uint8_t>(1 + std::lround(g));
+		img.data[k] = level;
+		++hist[level];
+		++st.pixels;
+	}
+	if (p.equalize && st.pixels > 0)
+	{
+		// Histogram equalization over the occupied pixels only: empty pixels stay 0.
+		std::array<uint8_t, 256> lut{};
+		int cum = 0;
+		for (int l = 1; l < 256; l++)
+		{
+			cum += hist[l];
+			lut[l] = static_cast<uint8_t>(1 + (254LL * cum) / static_cast<long long>(st.pixels));
+		}
+		for (std::size_t k = 0; k < npix; k++)
+			if (img.data[k]) img.data[k] = lut[img.data[k]];
+	}
+	out.image = mrpt::img::CImage(img, mrpt::img::SHALLOW_COPY);
+	return st;
+}
+
+int32_t pointAtPixel(const RasterFrame& f, float u, float v, int radius_px)
+{
+	const int w = static_cast<int>(f.image.getWidth()), h = static_cast<int>(f.image.getHeight());
+	const int cu = static_cast<int>(std::floor(u)), cv_ = static_cast<int>(std::floor(v));
+	int32_t best = -1;
+	float bestD = std::numeric_limits<float>::max();
+	for (int dv = -radius_px; dv <= radius_px; dv++)
+		for (int du = -radius_px; du <= radius_px; du++)
+		{
+			const int c = cu + du, r = cv_ + dv;
+			if (c < 0 || r < 0 || c >= w || r >= h) continue;
+			const int32_t idx = f.pixelToPoint[static_cast<std::size_t>(r) * w + c];
+			if (idx < 0) continue;
+			const float d = (c + 0.5f - u) * (c + 0.5f - u) + (r + 0.5f - v) * (r + 0.5f - v);
+			if (d < bestD)
+			{
+				bestD = d;
+				best = idx;
+			}
+		}
+	return best;
+}
+
+}  // namespace rasterslam::raster

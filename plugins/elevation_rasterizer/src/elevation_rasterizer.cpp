@@ -1,0 +1,91 @@
+// The paper's rasterizer: outlier removal, RANSAC ground removal, projection of the remaining
+// points into a greyscale elevation image (orthographic bird's-eye view or equation (1)).
+#include <mrpt/core/initializer.h>
+#include <rasterslam/core/plugin.h>
+#include <rasterslam/raster/elevation_image.h>
+#include <rasterslam/raster/ground_plane.h>
+
+namespace rasterslam
+{
+class ElevationRasterizer : public Rasterizer
+{
+	DEFINE_MRPT_OBJECT(ElevationRasterizer, rasterslam)
+
+   public:
+	void rasterize(const Scan& scan, RasterFrame& out) override;
+	const raster::RasterParams& params() const { return raster_; }
+
+   protected:
+	void initializeImpl(ParamReader& p) override;
+
+   private:
+	raster::RasterParams raster_;
+	raster::GroundParams ground_;
+};
+}  // namespace rasterslam
+
+using namespace rasterslam;
+
+IMPLEMENTS_MRPT_OBJECT(ElevationRasterizer, Rasterizer, rasterslam)
+
+MRPT_INITIALIZER(register_rasterslam_plugin_elevation_rasterizer)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::ElevationRasterizer));
+}
+
+void ElevationRasterizer::initializeImpl(ParamReader& p)
+{
+	raster::RasterParams r;
+	r.mode = p.getChoice("projection", "bev", {"bev", "pinhole"}) == "bev" ? raster::ProjectionMode::Bev
+																		  : raster::ProjectionMode::Pinhole;
+	r.minRange_m = p.getDouble("min_range_m", r.minRange_m);
+	r.maxRange_m = p.getDouble("max_range_m", r.maxRange_m);
+	r.resolution_m = p.getDouble("resolution_m", r.resolution_m);
+	r.pinholeSize_px = p.getInt("pinhole_size_px", r.pinholeSize_px);
+	r.cameraHeight_m = p.getDouble("camera_height_m", r.cameraHeight_m);
+	r.sensorHeight_m = p.getDouble("sensor_height_m", r.sensorHeight_m);
+	r.removeGround = p.getBool("remove_ground", r.removeGround);
+	r.groundThreshold_m = p.getDouble("ground_threshold_m", r.groundThreshold_m);
+	r.belowGround_m = p.getDouble("below_ground_m", r.belowGround_m);
+	r.greyMin_m = p.getDouble("grey_min_m", r.greyMin_m);
+	r.greyMax_m = p.getDouble("grey_max_m", r.greyMax_m);
+	r.equalize = p.getBool("equalize", r.equalize);
+	raster::GroundParams g;
+	g.candidateMaxZ_m = p.getDouble("ground_candidate_max_z_m", g.candidateMaxZ_m);
+	g.candidateMaxRange_m = p.getDouble("ground_candidate_max_range_m", g.candidateMaxRange_m);
+	g.maxCandidates = p.getInt("ground_max_candidates", g.maxCandidates);
+	g.iterations = p.getInt("ground_ransac_iterations", g.iterations);
+	g.inlierThreshold_m = p.getDouble("ground_inlier_threshold_m", g.inlierThreshold_m);
+	g.maxTilt_deg = p.getDouble("ground_max_tilt_deg", g.maxTilt_deg);
+	auto positive = [&](double v, const char* key) {
+		if (!(v > 0)) throw ConfigError(p.context() + "." + key + ": must be > 0");
+	};
+	positive(r.maxRange_m, "max_range_m");
+	positive(r.resolution_m, "resolution_m");
+	positive(r.pinholeSize_px, "pinhole_size_px");
+	positive(r.cameraHeight_m, "camera_height_m");
+	positive(r.greyMax_m - r.greyMin_m, "grey_max_m - grey_min_m");
+	positive(g.maxCandidates, "ground_max_candidates");
+	positive(g.iterations, "ground_ransac_iterations");
+	if (r.minRange_m >= r.maxRange_m) throw ConfigError(p.context() + ".min_range_m: must be below max_range_m");
+	if (r.mode == raster::ProjectionMode::Bev && 2 * r.maxRange_m / r.resolution_m > 8192)
+		throw ConfigError(p.context() + ".resolution_m: the image would exceed 8192 pixels a side");
+	raster_ = r;
+	ground_ = g;
+}
+
+void ElevationRasterizer::rasterize(const Scan& scan, RasterFrame& out)
+{
+	// The plane is fitted even without ground removal: grey levels are heights above it.
+	const raster::Plane plane = raster::fitGroundPlane(scan.points, ground_, static_cast<uint32_t>(scan.index + 1));
+	const auto st = raster::rasterizeElevation(scan.points, plane, raster_, out);
+	out.groundValid = plane.valid;
+	out.groundNormal[0] = plane.n.x();
+	out.groundNormal[1] = plane.n.y();
+	out.groundNormal[2] = plane.n.z();
+	out.groundD = plane.d;
+	MRPT_LOG_DEBUG_FMT(
+		"scan %zu: %zu points, %zu outliers, %zu ground (plane %s), %zu projected into %zu pixels",
+		scan.index, st.input, st.outliers, st.ground, plane.valid ? "found" : "not found", st.projected,
+		st.pixels);
+}

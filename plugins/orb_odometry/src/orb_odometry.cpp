@@ -1,0 +1,269 @@
+// The paper's laser pose estimation: ORB features on the elevation image, matched against the
+// last keyframe, RANSAC, back-projection to 3D and the closed-form rigid fit of equation (2).
+#include <mrpt/core/initializer.h>
+#include <rasterslam/core/plugin.h>
+#include <rasterslam/features/matcher.h>
+#include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/features/rigid_ransac.h>
+#include <rasterslam/raster/elevation_image.h>
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <memory>
+
+namespace rasterslam
+{
+class OrbOdometry : public Odometry
+{
+	DEFINE_MRPT_OBJECT(OrbOdometry, rasterslam)
+
+   public:
+	OdometryResult process(const Scan& scan, const RasterFrame* raster) override;
+
+   protected:
+	void initializeImpl(ParamReader& p) override;
+
+   private:
+	struct Frame
+	{
+		std::vector<cv::KeyPoint> kps;
+		cv::Mat desc;
+		std::vector<Eigen::Vector3f> pts;
+	};
+	void extract(const Scan& scan, const RasterFrame& raster, Frame& f);
+	features::RigidResult track(const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed);
+	Keyframe::Ptr keyframeOf(const Frame& f) const;
+
+	features::OrbParams orbParams_;
+	features::MatchParams match_;
+	features::RansacParams ransac_;
+	int kfMinFrames_ = 5, kfMinShared_ = 100, kfMaxFrames_ = 20;
+	double maxStep_m_ = 5.0, sigma_m_ = 0.1;
+	bool constantVelocity_ = true;
+
+	std::unique_ptr<features::OrbExtractor> orb_;
+	std::unique_ptr<Frame> kf_;
+	Eigen::Isometry3d T_kf_prev_ = Eigen::Isometry3d::Identity();
+	Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
+	int sinceKf_ = 0;
+};
+}  // namespace rasterslam
+
+using namespace rasterslam;
+
+IMPLEMENTS_MRPT_OBJECT(OrbOdometry, Odometry, rasterslam)
+
+MRPT_INITIALIZER(register_rasterslam_plugin_orb_odometry)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::OrbOdometry));
+}
+
+namespace
+{
+mrpt::poses::CPose3D toPose(const Eigen::Isometry3d& T)
+{
+	mrpt::math::CMatrixDouble44 M;
+	for (int r = 0; r < 4; r++)
+		for (int c = 0; c < 4; c++) M(r, c) = T.matrix()(r, c);
+	return mrpt::poses::CPose3D::FromHomogeneousMatrix(M);
+}
+}  // namespace
+
+void OrbOdometry::initializeImpl(ParamReader& p)
+{
+	features::OrbParams o;
+	o.numFeatures = p.getInt("num_features", 2000);
+	o.gridCols = p.getInt("grid_cols", o.gridCols);
+	o.gridRows = p.getInt("grid_rows", o.gridRows);
+	o.fastThreshold = p.getInt("fast_threshold", o.fastThreshold);
+	o.minFastThreshold = p.getInt("min_fast_threshold", o.minFastThreshold);
+	o.levels = p.getInt("scale_levels", o.levels);
+	o.scaleFactor = static_cast<float>(p.getDouble("scale_factor", o.scaleFactor));
+	o.patchSize = p.getInt("patch_size", o.patchSize);
+	o.edgeThreshold = o.patchSize;
+	match_.maxDistance = p.getInt("max_hamming", 64);
+	match_.ratio = static_cast<float>(p.getDouble("ratio", 1.0));
+	match_.gateRadius_m = static_cast<float>(p.getDouble("gate_m", 3.0));
+	ransac_.inlierThreshold_m = p.getDouble("ransac_threshold_m", 0.3);
+	ransac_.maxIterations = p.getInt("ransac_max_iterations", 300);
+	ransac_.confidence = p.getDouble("ransac_confidence", 0.999);
+	ransac_.minInliers = p.getInt("min_inliers", 30);
+	ransac_.refinements = p.getInt("refinements", 3);
+	kfMinFrames_ = p.getInt("keyframe_min_frames", kfMinFrames_);
+	kfMinShared_ = p.getInt("keyframe_min_shared", kfMinShared_);
+	kfMaxFrames_ = p.getInt("keyframe_max_frames", kfMaxFrames_);
+	maxStep_m_ = p.getDouble("max_step_m", maxStep_m_);
+	sigma_m_ = p.getDouble("point_sigma_m", sigma_m_);
+	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
+	auto positive = [&](double v, const char* key) {
+		if (!(v > 0)) throw ConfigError(p.context() + "." + key + ": must be > 0");
+	};
+	positive(o.numFeatures, "num_features");
+	positive(o.gridCols, "grid_cols");
+	positive(o.gridRows, "grid_rows");
+	positive(o.levels, "scale_levels");
+	positive(o.scaleFactor - 1.0, "scale_factor - 1");
+	positive(ransac_.inlierThreshold_m, "ransac_threshold_m");
+	positive(ransac_.maxIterations, "ransac_max_iterations");
+	positive(ransac_.minInliers - 2, "min_inliers - 2");
+	positive(kfMinFrames_, "keyframe_min_frames");
+	positive(kfMaxFrames_, "keyframe_max_frames");
+	positive(sigma_m_, "point_sigma_m");
+	orbParams_ = o;
+	orb_ = std::make_unique<features::OrbExtractor>(o);
+	kf_.reset();
+	T_kf_prev_.setIdentity();
+	velocity_.setIdentity();
+	sinceKf_ = 0;
+}
+
+void OrbOdometry::extract(const Scan& scan, const RasterFrame& raster, Frame& f)
+{
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat desc;
+	orb_->extract(raster.image.asCvMatRef(), kps, desc);
+	f.kps.clear();
+	f.pts.clear();
+	std::vector<int> keep;
+	for (int i = 0; i < static_cast<int>(kps.size()); i++)
+	{
+		const int32_t idx = raster::pointAtPixel(raster, kps[i].pt.x, kps[i].pt.y, 1);
+		if (idx < 0) continue;
+		const auto& q = scan.points[static_cast<std::size_t>(idx)];
+		f.kps.push_back(kps[i]);
+		f.pts.emplace_back(q.x, q.y, q.z);
+		keep.push_back(i);
+	}
+	f.desc.create(static_cast<int>(keep.size()), 32, CV_8U);
+	for (int r = 0; r < static_cast<int>(keep.size()); r++) desc.row(keep[r]).copyTo(f.desc.row(r));
+}
+
+features::RigidResult OrbOdometry::track(
+	const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed)
+{
+	// Keyframe points predicted into the current frame, for the gate.
+	std::vector<Eigen::Vector3f> predicted;
+	features::MatchParams mp = match_;
+	if (gated)
+	{
+		const Eigen::Isometry3f inv = prior.inverse().cast<float>();
+		predicted.reserve(kf_->pts.size());
+		for (const auto& q : kf_->pts) predicted.push_back(inv * q);
+	}
+	else
+		mp.gateRadius_m = 0;
+	const auto matches = features::matchMutual(
+		cur.desc, kf_->desc, mp, gated ? &cur.pts : nullptr, gated ? &predicted : nullptr);
+	std::vector<Eigen::Vector3f> p, q;
+	p.reserve(matches.size());
+	q.reserve(matches.size());
+	for (const auto& m : matches)
+	{
+		p.push_back(cur.pts[m.a]);
+		q.push_back(kf_->pts[m.b]);
+	}
+	auto r = features::ransacRigid(p, q, ransac_, static_cast<uint32_t>(seed * 2 + (gated ? 0 : 1)));
+	// Express inlier indices in the current frame's feature numbering.
+	for (auto& i : r.inliers) i = matches[i].a;
+	return r;
+}
+
+Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const
+{
+	auto k = std::make_shared<Keyframe>();
+	const std::size_t n = f.kps.size();
+	k->u.resize(n);
+	k->v.resize(n);
+	k->angle.resize(n);
+	k->response.resize(n);
+	k->octave.resize(n);
+	k->xyz.resize(3 * n);
+	k->descriptors.resize(32 * n);
+	for (std::size_t i = 0; i < n; i++)
+	{
+		k->u[i] = f.kps[i].pt.x;
+		k->v[i] = f.kps[i].pt.y;
+		k->angle[i] = f.kps[i].angle;
+		k->response[i] = f.kps[i].response;
+		k->octave[i] = static_cast<uint8_t>(f.kps[i].octave);
+		for (int c = 0; c < 3; c++) k->xyz[3 * i + c] = f.pts[i][c];
+		std::memcpy(&k->descriptors[32 * i], f.desc.ptr<uint8_t>(static_cast<int>(i)), 32);
+	}
+	return k;
+}
+
+OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
+{
+	if (!raster)
+		throw std::runtime_error(
+			"rasterslam::OrbOdometry needs elevation images: configure a rasterizer (e.g. "
+			"rasterslam::ElevationRasterizer)");
+	OdometryResult r;
+	auto cur = std::make_unique<Frame>();
+	extract(scan, *raster, *cur);
+
+	if (!kf_)
+	{
+		r.status = TrackingStatus::Initializing;
+		r.keyframe = true;
+		r.keyframeData = keyframeOf(*cur);
+		r.T_kf_curr = mrpt::poses::CPose3D();
+		kf_ = std::move(cur);
+		T_kf_prev_.setIdentity();
+		sinceKf_ = 0;
+		return r;
+	}
+
+	const Eigen::Isometry3d prior = T_kf_prev_ * (constantVelocity_ ? velocity_ : Eigen::Isometry3d::Identity());
+	auto est = track(*cur, prior, true, scan.index);
+	if (!est.ok) est = track(*cur, prior, false, scan.index);  // the gate may have been wrong
+	Eigen::Isometry3d T_kf_curr = prior;
+	bool ok = est.ok;
+	if (ok)
+	{
+		const Eigen::Isometry3d step = T_kf_prev_.inverse() * est.T;
+		if (step.translation().norm() > maxStep_m_)
+		{
+			ok = false;
+			r.message = "rejected a step of " + std::to_string(step.translation().norm()) + " m";
+		}
+	}
+	else
+		r.message = "only " + std::to_string(est.inliers.size()) + " inliers among " +
+			std::to_string(cur->kps.size()) + " features";
+
+	++sinceKf_;
+	if (ok)
+	{
+		T_kf_curr = est.T;
+		r.status = TrackingStatus::Ok;
+		r.inliers = est.inliers.size();
+		r.information = mrpt::math::CMatrixDouble66(features::pointToPointInformation(cur->pts, est.inliers, sigma_m_));
+	}
+	else
+	{
+		r.status = TrackingStatus::Lost;
+		r.information.setIdentity();
+		r.information *= 1e-2;  // a guess: trust it little
+	}
+	r.T_kf_curr = toPose(T_kf_curr);
+	const Eigen::Isometry3d T_prev_curr = T_kf_prev_.inverse() * T_kf_curr;
+	r.T_prev_curr = toPose(T_prev_curr);
+	if (ok) velocity_ = T_prev_curr;
+
+	// Paper: a keyframe when at least 5 frames have passed and at least 100 points are shared
+	// with it. A weak track that goes on too long, or a lost one, also starts a new keyframe
+	// so that tracking has a fresh reference.
+	const bool shared = static_cast<int>(r.inliers) >= kfMinShared_;
+	r.keyframe = (sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ || !ok;
+	if (r.keyframe)
+	{
+		r.keyframeData = keyframeOf(*cur);
+		kf_ = std::move(cur);
+		T_kf_prev_.setIdentity();
+		sinceKf_ = 0;
+	}
+	else
+		T_kf_prev_ = T_kf_curr;
+	return r;
+}
