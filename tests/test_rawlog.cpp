@@ -196,7 +196,10 @@ TEST(Rawlog, SensoryFrameFormatWithActionsAndGroundTruth)
 	for (size_t k = 0; k < scans.size(); k++)
 	{
 		ASSERT_EQ(scans[k].groundTruth.has_value(), k % 2 == 0) << k;
-		if (scans[k].groundTruth) EXPECT_NEAR(scans[k].groundTruth->x(), double(k), 1e-9);
+		if (scans[k].groundTruth)
+		{
+			EXPECT_NEAR(scans[k].groundTruth->x(), double(k), 1e-9);
+		}
 	}
 }
 

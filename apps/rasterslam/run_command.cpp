@@ -258,6 +258,7 @@ int runCommand(int argc, char** argv)
 	counts["lost"] = static_cast<uint64_t>(res.lost);
 	counts["late"] = static_cast<uint64_t>(res.late);
 	counts["loop_edges"] = static_cast<uint64_t>(res.loopEdges);
+	counts["rawlog_odometry_edges"] = static_cast<uint64_t>(res.odometryEdges);
 	counts["skipped_bad_scans"] = static_cast<uint64_t>(res.skippedBadScans);
 	info["counts"] = counts;
 	yaml summary = yaml::Map();

@@ -107,6 +107,11 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		skipBadScans_ = p.getChoice("on_bad_scan", "error", {"error", "skip"}) == "skip";
 		minPoints_ = p.getInt("min_points", 100);
 		optimizeAtEnd_ = p.getBool("optimize_at_end", true);
+		useRawlogOdometry_ = p.getBool("use_rawlog_odometry", false);
+		rawlogOdoSigma_m_ = p.getDouble("rawlog_odometry_sigma_m", rawlogOdoSigma_m_);
+		rawlogOdoSigma_deg_ = p.getDouble("rawlog_odometry_sigma_deg", rawlogOdoSigma_deg_);
+		if (!(rawlogOdoSigma_m_ > 0) || !(rawlogOdoSigma_deg_ > 0))
+			throw ConfigError(source_ + ": engine.rawlog_odometry_sigma_m and _deg must be > 0");
 		p.finish();
 		if (minPoints_ < 1) throw ConfigError(source_ + ": key 'engine.min_points' must be >= 1");
 		inForce_["engine"] = p.inForce();
@@ -147,6 +152,9 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	bool haveKf = false;
 	std::size_t stepsSinceKf = 0;
 	RasterFrame raster;
+	// The input's own odometry composed since the last keyframe (paper: visual odometry
+	// factors fused into the graph; here any odometry the rawlog carries).
+	std::optional<mrpt::poses::CPose3DPDFGaussian> odoSinceKf;
 
 	for (;;)
 	{
@@ -222,6 +230,12 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		else
 			currPose = currPose + odo.T_prev_curr;
 		++stepsSinceKf;
+		if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
+		{
+			if (!odoSinceKf) odoSinceKf = *scan->odometryIncrement;
+			else
+				*odoSinceKf += *scan->odometryIncrement;
+		}
 
 		if (!haveKf || odo.keyframe)
 		{
@@ -236,7 +250,26 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				e.cov_inv = odo.information;
 				if (!odo.T_kf_curr) e.cov_inv *= 1.0 / static_cast<double>(stepsSinceKf);
 				graph.insertEdge(lastKf, id, e);
+				if (odoSinceKf)
+				{
+					mrpt::graphs::CNetworkOfPoses3DInf::edge_t oe;
+					oe.mean = odoSinceKf->mean;
+					const auto& C = odoSinceKf->cov;
+					if (C.asEigen().isZero(0) || std::abs(C.det()) < 1e-18)
+					{
+						// No usable covariance in the input: the configured model.
+						oe.cov_inv.setZero();
+						const double st = rawlogOdoSigma_m_, sr = rawlogOdoSigma_deg_ * M_PI / 180;
+						for (int i = 0; i < 3; i++) oe.cov_inv(i, i) = 1 / (st * st);
+						for (int i = 3; i < 6; i++) oe.cov_inv(i, i) = 1 / (sr * sr);
+					}
+					else
+						oe.cov_inv = C.inverse_LLt();
+					graph.insertEdge(lastKf, id, oe);
+					++res.odometryEdges;
+				}
 			}
+			odoSinceKf.reset();
 			lastKf = id;
 			lastKfPose = currPose;
 			haveKf = true;
@@ -281,7 +314,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	res.stopReason = source.stopReason();
 	if (mapManager_) mapManager_->finish();
 
-	if (optimizer_ && optimizeAtEnd_ && res.loopEdges > 0)
+	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))
 	{
 		MRPT_LOG_INFO_STREAM(
 			"optimizing the pose graph: " << graph.nodes.size() << " nodes, " << graph.edges.size()

@@ -3,6 +3,10 @@
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/maps/registerAllClasses.h>
 #include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CActionRobotMovement2D.h>
+#include <mrpt/obs/CActionRobotMovement3D.h>
+#include <mrpt/obs/CObservationOdometry.h>
+#include <mrpt/poses/CPosePDFGaussian.h>
 #include <mrpt/obs/CObservation3DRangeScan.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
@@ -265,10 +269,29 @@ void RawlogSource::attachGroundTruth(int64_t ticks, const mrpt::poses::CPose3D& 
 	if (earlyGt_.size() > 16) earlyGt_.pop_front();	 // only ever needed for the next scan
 }
 
+void RawlogSource::addOdometryIncrement(const mrpt::poses::CPose3DPDFGaussian& inc)
+{
+	if (!pendingOdometry_) pendingOdometry_ = inc;
+	else
+		*pendingOdometry_ += inc;  // composition with covariance propagation
+}
+
 void RawlogSource::handleObservation(const mrpt::obs::CObservation& obs)
 {
 	using namespace mrpt::obs;
 	const int64_t ticks = obs.timestamp.time_since_epoch().count();
+	if (const auto* od = dynamic_cast<const CObservationOdometry*>(&obs))
+	{
+		// Absolute 2D readings: the increment is the difference of successive ones.
+		if (lastOdometryReading_)
+		{
+			mrpt::poses::CPose3DPDFGaussian inc(mrpt::poses::CPose3D(od->odometry - *lastOdometryReading_));
+			inc.cov.setZero();
+			addOdometryIncrement(inc);
+		}
+		lastOdometryReading_ = od->odometry;
+		return;
+	}
 	if (const auto* gt = dynamic_cast<const CObservationRobotPose*>(&obs))
 	{
 		attachGroundTruth(ticks, gt->pose.mean);
@@ -278,6 +301,8 @@ void RawlogSource::handleObservation(const mrpt::obs::CObservation& obs)
 	Scan s;
 	if (!observationToPoints(obs, s.points, opts_, path_)) return;
 	s.index = scans_++;
+	s.odometryIncrement = pendingOdometry_;
+	pendingOdometry_.reset();
 	s.stamp = mrpt::Clock::toDouble(obs.timestamp);
 	s.sensorLabel = obs.sensorLabel;
 	for (auto it = earlyGt_.begin(); it != earlyGt_.end(); ++it)
@@ -337,7 +362,22 @@ bool RawlogSource::readOne()
 	}
 	else if (auto o = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
 		handleObservation(*o);
-	// CActionCollection and other objects carry no scans: skipped here.
+	else if (auto acts = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(obj))
+	{
+		for (const auto& a : *acts)
+		{
+			if (const auto* m3 = dynamic_cast<const mrpt::obs::CActionRobotMovement3D*>(a.get()))
+				addOdometryIncrement(m3->poseChange);
+			else if (const auto* m2 = dynamic_cast<const mrpt::obs::CActionRobotMovement2D*>(a.get()))
+			{
+				if (!m2->poseChange) continue;
+				mrpt::poses::CPosePDFGaussian g;
+				g.copyFrom(*m2->poseChange);
+				addOdometryIncrement(mrpt::poses::CPose3DPDFGaussian(g));
+			}
+		}
+	}
+	// Other objects carry no scans or odometry: skipped.
 	return true;
 }
 

@@ -55,6 +55,7 @@ struct RunResult
 	std::vector<mrpt::poses::CPose3D> poses;
 	mrpt::graphs::CNetworkOfPoses3DInf graph;
 	std::size_t keyframes = 0, lost = 0, late = 0, loopEdges = 0, skippedBadScans = 0;
+	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
 	OptimizerResult optimizer;
 	/** Empty if the input ended normally; else where and why it stopped early. */
 	std::string stopReason;
@@ -95,6 +96,8 @@ class Engine : public mrpt::system::COutputLogger
 	bool skipBadScans_ = false;
 	int minPoints_ = 100;
 	bool optimizeAtEnd_ = true;
+	bool useRawlogOdometry_ = false;
+	double rawlogOdoSigma_m_ = 0.05, rawlogOdoSigma_deg_ = 0.5;
 };
 
 /** Resident set size high-water mark of this process, MB (from /proc/self/status). */

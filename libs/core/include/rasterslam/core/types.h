@@ -2,6 +2,7 @@
 #pragma once
 
 #include <mrpt/poses/CPose3D.h>
+#include <mrpt/poses/CPose3DPDFGaussian.h>
 
 #include <cstddef>
 #include <optional>
@@ -29,6 +30,10 @@ struct Scan
 	std::vector<PointXYZI> points;
 	/** Pose of the vehicle frame in the world, when the input carries ground truth. */
 	std::optional<mrpt::poses::CPose3D> groundTruth;
+	/** Motion since the previous scan measured by another odometry in the input (wheel or
+	 *  visual odometry: CActionRobotMovement2D/3D, CObservationOdometry), with its
+	 *  covariance (all zero when the input gives none). */
+	std::optional<mrpt::poses::CPose3DPDFGaussian> odometryIncrement;
 };
 
 }  // namespace rasterslam

@@ -3,6 +3,9 @@
 
 #include <rasterslam/core/scan_source.h>
 
+#include <mrpt/poses/CPose2D.h>
+#include <mrpt/poses/CPose3DPDFGaussian.h>
+
 #include <deque>
 #include <memory>
 #include <optional>
@@ -31,6 +34,9 @@ struct RawlogSourceOptions
  *  Yields a Scan for every CObservationPointCloud (also externally stored),
  *  CObservationVelodyneScan, CObservationRotatingScan and CObservation3DRangeScan; a
  *  CObservationRobotPose with the same time stamp as a scan becomes its ground truth.
+ *  Odometry in the input (CActionRobotMovement2D/3D in action collections, successive
+ *  CObservationOdometry readings) is composed, with its covariance, into each scan's
+ *  odometryIncrement (the motion since the previous scan).
  *  A missing or unreadable file, or one that does not start with an MRPT object, throws.
  *  Damage later in the file ends the stream: stopReason() gives the byte offset. */
 class RawlogSource : public ScanSource
@@ -61,6 +67,9 @@ class RawlogSource : public ScanSource
 	int64_t pendingTicks_ = 0;
 	std::deque<Scan> ready_;
 	std::deque<std::pair<int64_t, mrpt::poses::CPose3D>> earlyGt_;  // ground truth seen first
+	void addOdometryIncrement(const mrpt::poses::CPose3DPDFGaussian& inc);
+	std::optional<mrpt::poses::CPose3DPDFGaussian> pendingOdometry_;  // since the last scan
+	std::optional<mrpt::poses::CPose2D> lastOdometryReading_;  // CObservationOdometry
 	bool ended_ = false;
 	std::string stopReason_;
 };

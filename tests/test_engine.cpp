@@ -1,0 +1,189 @@
+// The engine with in-process plugins: keyframes and the pose for every scan, the input's own
+// odometry as extra graph edges, and the pose-graph optimizer on a graph with a known solution.
+#include <mrpt/core/initializer.h>
+#include <rasterslam/core/engine.h>
+#include <rasterslam/core/plugin_loader.h>
+
+#include <deque>
+#include <random>
+
+#include "test_support.h"
+
+using namespace rasterslam;
+using mrpt::containers::yaml;
+using mrpt::poses::CPose3D;
+
+namespace rasterslam::test
+{
+/** An odometry that reports a fixed step per scan and a keyframe every `every` scans. */
+class FixedStepOdometry : public Odometry
+{
+	DEFINE_MRPT_OBJECT(FixedStepOdometry, rasterslam::test)
+   public:
+	OdometryResult process(const Scan&, const RasterFrame*) override
+	{
+		OdometryResult r;
+		r.status = n_ == 0 ? TrackingStatus::Initializing : TrackingStatus::Ok;
+		r.T_prev_curr = n_ == 0 ? CPose3D() : step_;
+		r.keyframe = n_ % every_ == 0;
+		++n_;
+		return r;
+	}
+
+   protected:
+	void initializeImpl(ParamReader& p) override
+	{
+		every_ = p.getInt("every", 3);
+		step_ = CPose3D(p.getDouble("dx", 1.0), 0, 0, p.getDouble("dyaw", 0.0), 0, 0);
+	}
+
+   private:
+	int every_ = 3, n_ = 0;
+	CPose3D step_;
+};
+}  // namespace rasterslam::test
+
+IMPLEMENTS_MRPT_OBJECT(FixedStepOdometry, rasterslam::Odometry, rasterslam::test)
+MRPT_INITIALIZER(register_test_plugins) { mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::FixedStepOdometry)); }
+
+namespace
+{
+class VectorSource : public ScanSource
+{
+   public:
+	explicit VectorSource(std::deque<Scan> s) : scans_(std::move(s)) {}
+	std::optional<Scan> next() override
+	{
+		if (scans_.empty()) return std::nullopt;
+		Scan s = std::move(scans_.front());
+		scans_.pop_front();
+		return s;
+	}
+	std::string name() const override { return "memory"; }
+
+   private:
+	std::deque<Scan> scans_;
+};
+
+std::deque<Scan> makeScans(int n, bool withOdometry, const CPose3D& odoStep)
+{
+	std::deque<Scan> out;
+	for (int k = 0; k < n; k++)
+	{
+		Scan s;
+		s.index = k;
+		s.stamp = 10 + 0.1 * k;
+		for (int i = 0; i < 200; i++) s.points.push_back({float(i), 1, 0, 0});
+		if (withOdometry && k > 0)
+		{
+			mrpt::poses::CPose3DPDFGaussian inc(odoStep);
+			inc.cov.setIdentity();
+			inc.cov *= 1e-4;
+			s.odometryIncrement = inc;
+		}
+		out.push_back(std::move(s));
+	}
+	return out;
+}
+}  // namespace
+
+TEST(Engine, KeyframesAndAPoseForEveryScan)
+{
+	Engine e(yaml::FromText("odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 3, dx: 1.0, dyaw: 0.1}}\n"), "t.yaml");
+	VectorSource src(makeScans(10, false, CPose3D()));
+	const auto res = e.run(src, {});
+	ASSERT_EQ(res.scans.size(), 10u);
+	ASSERT_EQ(res.poses.size(), 10u);
+	EXPECT_EQ(res.keyframes, 4u);  // scans 0, 3, 6, 9
+	EXPECT_EQ(res.graph.nodes.size(), 4u);
+	EXPECT_EQ(res.graph.edges.size(), 3u);
+	// Scan k is k steps of (1 m, 0.1 rad) from the first.
+	CPose3D expected;
+	for (int k = 0; k < 10; k++)
+	{
+		EXPECT_NEAR((res.poses[k].asVectorVal() - expected.asVectorVal()).norm(), 0, 1e-9) << k;
+		EXPECT_EQ(res.scans[k].keyframe, k % 3 == 0) << k;
+		expected = expected + CPose3D(1, 0, 0, 0.1, 0, 0);
+	}
+	// A non-keyframe scan is placed relative to its keyframe.
+	EXPECT_EQ(res.scans[5].kfNode, 1u);
+	EXPECT_NEAR(res.scans[5].T_kf_scan.x(), 1 + std::cos(0.1), 1e-9);
+}
+
+TEST(Engine, FirstLastSelectInputIndices)
+{
+	Engine e(yaml::FromText("odometry: {class: rasterslam::test::FixedStepOdometry}\n"), "t.yaml");
+	VectorSource src(makeScans(10, false, CPose3D()));
+	RunOptions o;
+	o.first = 2;
+	o.last = 6;
+	const auto res = e.run(src, o);
+	ASSERT_EQ(res.scans.size(), 5u);
+	EXPECT_EQ(res.scans.front().index, 2u);
+	EXPECT_EQ(res.scans.back().index, 6u);
+}
+
+TEST(Engine, RawlogOdometryBecomesExtraEdgesAndIsOptimized)
+{
+	PluginLoader::instance().load();
+	// The LiDAR odometry says 1 m a scan; the wheel odometry says 1.1 m with a much smaller
+	// covariance: after optimization the keyframes follow the wheels.
+	const std::string cfg =
+		"odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 2, dx: 1.0}}\n"
+		"optimizer: {class: rasterslam::LevMarqOptimizer}\n"
+		"engine: {use_rawlog_odometry: true}\n";
+	Engine e(yaml::FromText(cfg), "t.yaml");
+	VectorSource src(makeScans(7, true, CPose3D(1.1, 0, 0, 0, 0, 0)));
+	const auto res = e.run(src, {});
+	EXPECT_EQ(res.keyframes, 4u);  // 0, 2, 4, 6
+	EXPECT_EQ(res.odometryEdges, 3u);
+	EXPECT_EQ(res.graph.edges.size(), 6u);	// one LiDAR and one wheel edge a keyframe pair
+	bool sawWheelEdge = false;
+	for (const auto& [ids, edge] : res.graph.edges)
+		if (std::abs(edge.mean.x() - 2.2) < 1e-9) sawWheelEdge = true;
+	EXPECT_TRUE(sawWheelEdge);
+	EXPECT_TRUE(res.optimizer.ran);
+	EXPECT_NEAR(res.graph.nodes.at(3).x(), 6.6, 0.01);
+	EXPECT_NEAR(res.poses[6].x(), 6.6, 0.01);
+
+	// Without the option, the odometry in the input is ignored.
+	Engine off(yaml::FromText("odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 2}}\n"), "t.yaml");
+	VectorSource src2(makeScans(7, true, CPose3D(1.1, 0, 0, 0, 0, 0)));
+	EXPECT_EQ(off.run(src2, {}).odometryEdges, 0u);
+}
+
+TEST(Optimizer, RecoversAKnownSquare)
+{
+	PluginLoader::instance().load();
+	auto opt = PluginLoader::instance().create<Optimizer>("rasterslam::LevMarqOptimizer");
+	opt->initialize(yaml());
+	// A square of side 10 driven once: exact edges, a loop edge back to the start, and
+	// initial node poses corrupted by seeded noise.
+	mrpt::graphs::CNetworkOfPoses3DInf g;
+	std::vector<CPose3D> truth;
+	CPose3D p;
+	for (int i = 0; i < 8; i++)
+	{
+		truth.push_back(p);
+		p = p + CPose3D(5, 0, 0, (i % 2 == 1) ? M_PI / 2 : 0, 0, 0);
+	}
+	std::mt19937 rng(5);
+	std::normal_distribution<double> n(0, 0.3);
+	for (int i = 0; i < 8; i++)
+		g.nodes[i] = i == 0 ? truth[0] : truth[i] + CPose3D(n(rng), n(rng), 0.1 * n(rng), 0.1 * n(rng), 0, 0);
+	auto addEdge = [&](int a, int b) {
+		mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+		e.mean = truth[b] - truth[a];
+		e.cov_inv.setIdentity();
+		e.cov_inv *= 100;
+		g.insertEdge(a, b, e);
+	};
+	for (int i = 0; i + 1 < 8; i++) addEdge(i, i + 1);
+	addEdge(7, 0);
+	g.root = 0;
+	const auto r = opt->optimize(g);
+	EXPECT_TRUE(r.ran);
+	EXPECT_LT(r.finalError, r.initialError);
+	for (int i = 0; i < 8; i++)
+		EXPECT_NEAR((g.nodes[i] - truth[i]).asVectorVal().norm(), 0, 1e-4) << i;
+}
