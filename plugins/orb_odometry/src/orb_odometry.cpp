@@ -31,7 +31,8 @@ class OrbOdometry : public Odometry
 		std::vector<Eigen::Vector3f> pts;
 	};
 	void extract(const Scan& scan, const RasterFrame& raster, Frame& f);
-	features::RigidResult track(const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed);
+	features::RigidResult track(
+		const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed);
 	Keyframe::Ptr keyframeOf(const Frame& f) const;
 
 	features::OrbParams orbParams_;
@@ -43,6 +44,7 @@ class OrbOdometry : public Odometry
 
 	std::unique_ptr<features::OrbExtractor> orb_;
 	std::unique_ptr<Frame> kf_;
+	std::shared_ptr<Frame> prev_;  //!< the previous frame, when it is not the keyframe
 	Eigen::Isometry3d T_kf_prev_ = Eigen::Isometry3d::Identity();
 	Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
 	int sinceKf_ = 0;
@@ -112,6 +114,7 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	orbParams_ = o;
 	orb_ = std::make_unique<features::OrbExtractor>(o);
 	kf_.reset();
+	prev_.reset();
 	T_kf_prev_.setIdentity();
 	velocity_.setIdentity();
 	sinceKf_ = 0;
@@ -139,7 +142,7 @@ void OrbOdometry::extract(const Scan& scan, const RasterFrame& raster, Frame& f)
 }
 
 features::RigidResult OrbOdometry::track(
-	const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed)
+	const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed)
 {
 	// Keyframe points predicted into the current frame, for the gate.
 	std::vector<Eigen::Vector3f> predicted;
@@ -147,20 +150,20 @@ features::RigidResult OrbOdometry::track(
 	if (gated)
 	{
 		const Eigen::Isometry3f inv = prior.inverse().cast<float>();
-		predicted.reserve(kf_->pts.size());
-		for (const auto& q : kf_->pts) predicted.push_back(inv * q);
+		predicted.reserve(ref.pts.size());
+		for (const auto& q : ref.pts) predicted.push_back(inv * q);
 	}
 	else
 		mp.gateRadius_m = 0;
 	const auto matches = features::matchMutual(
-		cur.desc, kf_->desc, mp, gated ? &cur.pts : nullptr, gated ? &predicted : nullptr);
+		cur.desc, ref.desc, mp, gated ? &cur.pts : nullptr, gated ? &predicted : nullptr);
 	std::vector<Eigen::Vector3f> p, q;
 	p.reserve(matches.size());
 	q.reserve(matches.size());
 	for (const auto& m : matches)
 	{
 		p.push_back(cur.pts[m.a]);
-		q.push_back(kf_->pts[m.b]);
+		q.push_back(ref.pts[m.b]);
 	}
 	auto r = features::ransacRigid(p, q, ransac_, static_cast<uint32_t>(seed * 2 + (gated ? 0 : 1)));
 	// Express inlier indices in the current frame's feature numbering.
@@ -215,8 +218,18 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	}
 
 	const Eigen::Isometry3d prior = T_kf_prev_ * (constantVelocity_ ? velocity_ : Eigen::Isometry3d::Identity());
-	auto est = track(*cur, prior, true, scan.index);
-	if (!est.ok) est = track(*cur, prior, false, scan.index);  // the gate may have been wrong
+	auto est = track(*kf_, *cur, prior, true, scan.index);
+	if (!est.ok) est = track(*kf_, *cur, prior, false, scan.index);  // the gate may have been wrong
+	if (!est.ok && prev_)
+	{
+		// The keyframe may be too far behind: bridge through the previous frame.
+		auto viaPrev = track(*prev_, *cur, velocity_, true, scan.index + 7919);
+		if (viaPrev.ok)
+		{
+			viaPrev.T = T_kf_prev_ * viaPrev.T;
+			est = std::move(viaPrev);
+		}
+	}
 	Eigen::Isometry3d T_kf_curr = prior;
 	bool ok = est.ok;
 	if (ok)
@@ -260,10 +273,14 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	{
 		r.keyframeData = keyframeOf(*cur);
 		kf_ = std::move(cur);
+		prev_.reset();
 		T_kf_prev_.setIdentity();
 		sinceKf_ = 0;
 	}
 	else
+	{
+		prev_ = std::move(cur);
 		T_kf_prev_ = T_kf_curr;
+	}
 	return r;
 }
