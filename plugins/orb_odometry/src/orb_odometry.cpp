@@ -220,6 +220,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	const Eigen::Isometry3d prior = T_kf_prev_ * (constantVelocity_ ? velocity_ : Eigen::Isometry3d::Identity());
 	auto est = track(*kf_, *cur, prior, true, scan.index);
 	if (!est.ok) est = track(*kf_, *cur, prior, false, scan.index);  // the gate may have been wrong
+	bool bridged = false;
 	if (!est.ok && prev_)
 	{
 		// The keyframe may be too far behind: bridge through the previous frame.
@@ -228,6 +229,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		{
 			viaPrev.T = T_kf_prev_ * viaPrev.T;
 			est = std::move(viaPrev);
+			bridged = true;
 		}
 	}
 	Eigen::Isometry3d T_kf_curr = prior;
@@ -267,8 +269,19 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	// Paper: a keyframe when at least 5 frames have passed and at least 100 points are shared
 	// with it. A weak track that goes on too long, or a lost one, also starts a new keyframe
 	// so that tracking has a fresh reference.
-	const bool shared = static_cast<int>(r.inliers) >= kfMinShared_;
-	r.keyframe = (sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ || !ok;
+	// A bridged match says the keyframe can no longer be tracked: this frame takes over. A
+	// frame with too few features never becomes the reference (the next scan would have
+	// nothing to match): the old keyframe and previous frame stay.
+	const bool shared = !bridged && static_cast<int>(r.inliers) >= kfMinShared_;
+	const bool usable = static_cast<int>(cur->kps.size()) >= ransac_.minInliers;
+	r.keyframe = usable &&
+		((sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ || !ok || bridged);
+	if (!usable)
+	{
+		// Keep tracking against the old references; the prior stands in for this frame.
+		T_kf_prev_ = T_kf_curr;
+		return r;
+	}
 	if (r.keyframe)
 	{
 		r.keyframeData = keyframeOf(*cur);

@@ -1,0 +1,372 @@
+// Features of the tracking: the closed-form rigid fit and its RANSAC, the information matrix,
+// mutual Hamming matching with its spatial gate, and ORB over a grid.
+#include <rasterslam/features/matcher.h>
+#include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/features/rigid_ransac.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <numeric>
+#include <opencv2/imgproc.hpp>
+#include <random>
+#include <set>
+
+#include "test_support.h"
+
+namespace
+{
+using namespace rasterslam;
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+Eigen::Isometry3d motion(double yawDeg, const Eigen::Vector3d& t, double pitchDeg = 0,
+                         double rollDeg = 0)
+{
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.linear() = (Eigen::AngleAxisd(yawDeg * kDeg, Eigen::Vector3d::UnitZ()) *
+	              Eigen::AngleAxisd(pitchDeg * kDeg, Eigen::Vector3d::UnitY()) *
+	              Eigen::AngleAxisd(rollDeg * kDeg, Eigen::Vector3d::UnitX()))
+	                 .toRotationMatrix();
+	T.translation() = t;
+	return T;
+}
+
+double rotationErrorDeg(const Eigen::Isometry3d& A, const Eigen::Isometry3d& B)
+{
+	return Eigen::AngleAxisd(A.linear().transpose() * B.linear()).angle() / kDeg;
+}
+
+/** 500 points in a 100 x 100 x 10 m box, q = T p + N(0, 0.03) for the inliers, and a random
+ *  point of the box instead of q for a fraction `outlierRatio` of the pairs. */
+struct Synthetic
+{
+	std::vector<Eigen::Vector3f> p, q;
+	std::vector<char> inlier;
+	Eigen::Isometry3d T = motion(10.0, {1.5, -0.4, 0.1});
+};
+Synthetic makePairs(uint32_t seed, double outlierRatio, int n = 500)
+{
+	Synthetic s;
+	std::mt19937 rng(seed);
+	std::uniform_real_distribution<float> xy(-50, 50), z(-5, 5), u(0, 1);
+	std::normal_distribution<float> noise(0, 0.03f);
+	const Eigen::Isometry3f T = s.T.cast<float>();
+	for (int i = 0; i < n; i++)
+	{
+		const Eigen::Vector3f a(xy(rng), xy(rng), z(rng));
+		s.p.push_back(a);
+		if (u(rng) < outlierRatio)
+		{
+			s.q.emplace_back(xy(rng), xy(rng), z(rng));
+			s.inlier.push_back(0);
+		}
+		else
+		{
+			s.q.push_back(T * a + Eigen::Vector3f(noise(rng), noise(rng), noise(rng)));
+			s.inlier.push_back(1);
+		}
+	}
+	return s;
+}
+
+cv::Mat randomDescriptors(int rows, uint32_t seed)
+{
+	std::mt19937 rng(seed);
+	cv::Mat d(rows, 32, CV_8U);
+	for (int r = 0; r < rows; r++)
+		for (int c = 0; c < 32; c++)
+			d.at<uint8_t>(r, c) = static_cast<uint8_t>(rng() & 0xFF);
+	return d;
+}
+}  // namespace
+
+TEST(RigidFit, ExactOnNoiselessPairs)
+{
+	const Eigen::Isometry3d T = motion(-37.0, {4.0, 2.5, -0.7}, 3.0, -5.0);
+	std::mt19937 rng(3);
+	std::uniform_real_distribution<float> d(-20, 20);
+	std::vector<Eigen::Vector3f> p, q;
+	for (int i = 0; i < 30; i++)
+	{
+		p.emplace_back(d(rng), d(rng), d(rng) / 4);
+		q.push_back((T * p.back().cast<double>()).cast<float>());
+	}
+	std::vector<int> idx(30);
+	std::iota(idx.begin(), idx.end(), 0);
+	Eigen::Isometry3d est;
+	ASSERT_TRUE(features::fitRigid(p, q, idx, est));
+	EXPECT_LT((est.translation() - T.translation()).norm(), 1e-4);
+	EXPECT_LT(rotationErrorDeg(est, T), 1e-4);
+	// Three pairs determine it too; two do not.
+	ASSERT_TRUE(features::fitRigid(p, q, {0, 1, 2}, est));
+	EXPECT_LT((est.translation() - T.translation()).norm(), 1e-3);
+	EXPECT_FALSE(features::fitRigid(p, q, {0, 1}, est));
+}
+
+TEST(RigidRansac, RecoversMotionDespiteOutliers)
+{
+	const auto s = makePairs(42, 0.3);
+	const int nIn = static_cast<int>(std::count(s.inlier.begin(), s.inlier.end(), 1));
+	ASSERT_GT(nIn, 300);
+	ASSERT_LT(nIn, 400);
+	const auto r = features::ransacRigid(s.p, s.q, features::RansacParams(), 7);
+	ASSERT_TRUE(r.ok);
+	// Measured: 2.9 mm and 0.004 deg (17 iterations).
+	EXPECT_LT((r.T.translation() - s.T.translation()).norm(), 0.02);
+	EXPECT_LT(rotationErrorDeg(r.T, s.T), 0.1);
+	int trueIn = 0, falseIn = 0;
+	for (const int i : r.inliers)
+		(s.inlier[static_cast<std::size_t>(i)] ? trueIn : falseIn)++;
+	EXPECT_GE(trueIn, 0.95 * nIn);  // measured: all 355 true inliers, none of the 145 outliers
+	EXPECT_LT(falseIn, 0.02 * (500 - nIn));
+	EXPECT_EQ(std::set<int>(r.inliers.begin(), r.inliers.end()).size(), r.inliers.size());
+	EXPECT_NEAR(r.rmse_m, 0.03 * std::sqrt(3.0), 0.015);  // 3D norm of the noise
+	EXPECT_LE(r.iterations, features::RansacParams().maxIterations);
+
+	// Deterministic for a seed.
+	const auto r2 = features::ransacRigid(s.p, s.q, features::RansacParams(), 7);
+	EXPECT_EQ(r2.inliers, r.inliers);
+	EXPECT_TRUE(r2.T.isApprox(r.T, 0));
+	EXPECT_EQ(r2.iterations, r.iterations);
+}
+
+TEST(RigidRansac, NoConsensusIsNotOk)
+{
+	// All pairs random: no motion explains them.
+	const auto s = makePairs(5, 1.0);
+	for (uint32_t seed : {1u, 2u, 3u})
+	{
+		const auto r = features::ransacRigid(s.p, s.q, features::RansacParams(), seed);
+		EXPECT_FALSE(r.ok) << "seed " << seed << ": " << r.inliers.size() << " inliers";
+		EXPECT_LT(r.inliers.size(), 20u);
+	}
+	// Fewer than 3 pairs, or sets of different sizes.
+	const std::vector<Eigen::Vector3f> two = {{0, 0, 0}, {1, 0, 0}};
+	EXPECT_FALSE(features::ransacRigid(two, two, features::RansacParams(), 1).ok);
+	EXPECT_FALSE(features::ransacRigid({}, {}, features::RansacParams(), 1).ok);
+	auto q = s.p;
+	q.pop_back();
+	EXPECT_FALSE(features::ransacRigid(s.p, q, features::RansacParams(), 1).ok);
+	// Collinear points leave the rotation about their line free: no sample is accepted.
+	std::vector<Eigen::Vector3f> line;
+	for (int i = 0; i < 50; i++)
+		line.emplace_back(float(i), 0, 0);
+	EXPECT_FALSE(features::ransacRigid(line, line, features::RansacParams(), 1).ok);
+	// Fewer agreeing pairs than minInliers.
+	const auto few = makePairs(9, 0.0, 15);
+	EXPECT_FALSE(features::ransacRigid(few.p, few.q, features::RansacParams(), 1).ok);
+	features::RansacParams loose;
+	loose.minInliers = 10;
+	EXPECT_TRUE(features::ransacRigid(few.p, few.q, loose, 1).ok);
+}
+
+TEST(RigidRansac, PointToPointInformation)
+{
+	std::mt19937 rng(11);
+	std::uniform_real_distribution<float> d(-30, 30), dz(-3, 3);
+	std::vector<Eigen::Vector3f> pts;
+	for (int i = 0; i < 200; i++)
+		pts.emplace_back(d(rng), d(rng), dz(rng));
+	std::vector<int> idx(pts.size());
+	std::iota(idx.begin(), idx.end(), 0);
+	const auto I = features::pointToPointInformation(pts, idx, 0.1);
+	EXPECT_TRUE(I.isApprox(I.transpose(), 1e-12));
+	const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(I);
+	EXPECT_GT(es.eigenvalues().minCoeff(), 0);
+	// Translation block: n / sigma^2 on the diagonal.
+	EXPECT_NEAR(I(0, 0), 200 / 0.01, 1e-6);
+	EXPECT_NEAR(I(2, 2), 200 / 0.01, 1e-6);
+
+	// Points along x (long) and y (short) on the plane z = 0: MRPT order x y z yaw pitch roll.
+	// yaw ~ sum(x^2 + y^2), pitch (about y) ~ sum(x^2), roll (about x) ~ sum(y^2).
+	std::vector<Eigen::Vector3f> flat;
+	double sx2 = 0, sy2 = 0;
+	for (int i = 0; i < 100; i++)
+	{
+		flat.emplace_back(d(rng), d(rng) / 10, 0);
+		sx2 += double(flat.back().x()) * flat.back().x();
+		sy2 += double(flat.back().y()) * flat.back().y();
+	}
+	std::vector<int> all(100);
+	std::iota(all.begin(), all.end(), 0);
+	const auto F = features::pointToPointInformation(flat, all, 1.0);
+	EXPECT_NEAR(F(3, 3), sx2 + sy2, 1e-6 * (sx2 + sy2));  // yaw
+	EXPECT_NEAR(F(4, 4), sx2, 1e-6 * sx2);                // pitch
+	EXPECT_NEAR(F(5, 5), sy2, 1e-6 * sx2);                // roll
+	EXPECT_GT(F(3, 3), 10 * F(5, 5));
+	// Only the listed points count, and sigma scales as 1 / sigma^2.
+	const auto half = features::pointToPointInformation(flat, {0, 1, 2}, 2.0);
+	EXPECT_NEAR(half(0, 0), 3 / 4.0, 1e-12);
+}
+
+TEST(Matcher, IdenticalAndShuffledSets)
+{
+	const cv::Mat A = randomDescriptors(200, 1);
+	features::MatchParams mp;
+	auto m = features::matchMutual(A, A, mp);
+	ASSERT_EQ(m.size(), 200u);
+	for (int i = 0; i < 200; i++)
+	{
+		EXPECT_EQ(m[i].a, i);
+		EXPECT_EQ(m[i].b, i);
+		EXPECT_EQ(m[i].distance, 0);
+	}
+	std::vector<int> perm(200);
+	std::iota(perm.begin(), perm.end(), 0);
+	std::shuffle(perm.begin(), perm.end(), std::mt19937(2));
+	cv::Mat B(200, 32, CV_8U);
+	for (int i = 0; i < 200; i++)
+		A.row(i).copyTo(B.row(perm[i]));
+	m = features::matchMutual(A, B, mp);
+	ASSERT_EQ(m.size(), 200u);
+	for (const auto& x : m)
+		EXPECT_EQ(x.b, perm[x.a]);
+	EXPECT_TRUE(features::matchMutual(A, cv::Mat(0, 32, CV_8U), mp).empty());
+}
+
+TEST(Matcher, MaxDistanceRejectsFarPairs)
+{
+	const cv::Mat A = randomDescriptors(100, 3);
+	cv::Mat B = A.clone();
+	std::mt19937 rng(4);
+	// Rows 0..49: 10 bits flipped (kept); rows 50..99: 40 bits flipped (beyond 30, rejected).
+	for (int r = 0; r < 100; r++)
+	{
+		std::vector<int> bits(256);
+		std::iota(bits.begin(), bits.end(), 0);
+		std::shuffle(bits.begin(), bits.end(), rng);
+		for (int k = 0; k < (r < 50 ? 10 : 40); k++)
+			B.at<uint8_t>(r, bits[k] / 8) ^= uint8_t(1u << (bits[k] % 8));
+	}
+	features::MatchParams mp;
+	mp.maxDistance = 30;
+	const auto m = features::matchMutual(A, B, mp);
+	ASSERT_EQ(m.size(), 50u);
+	for (const auto& x : m)
+	{
+		EXPECT_LT(x.a, 50);
+		EXPECT_EQ(x.a, x.b);
+		EXPECT_EQ(x.distance, 10);
+	}
+	mp.maxDistance = 64;
+	EXPECT_EQ(features::matchMutual(A, B, mp).size(), 100u);
+}
+
+TEST(Matcher, GateExcludesPairsFarApartInSpace)
+{
+	const cv::Mat A = randomDescriptors(100, 5);
+	std::mt19937 rng(6);
+	std::uniform_real_distribution<float> d(-40, 40);
+	std::vector<Eigen::Vector3f> posA, posB;
+	for (int i = 0; i < 100; i++)
+	{
+		posA.emplace_back(d(rng), d(rng), d(rng) / 10);
+		// Even rows 1 m away from their twin (inside a 3 m gate), odd rows 10 m away.
+		posB.push_back(posA.back() + Eigen::Vector3f(i % 2 ? 10.0f : 0.6f, i % 2 ? 0 : 0.8f, 0));
+	}
+	features::MatchParams mp;
+	mp.gateRadius_m = 3;
+	const auto m = features::matchMutual(A, A, mp, &posA, &posB);
+	std::set<int> matched;
+	for (const auto& x : m)
+	{
+		EXPECT_LE((posA[x.a] - posB[x.b]).norm(), 3.0f);
+		EXPECT_EQ(x.a, x.b);
+		matched.insert(x.a);
+	}
+	for (int i = 0; i < 100; i += 2)
+		EXPECT_TRUE(matched.count(i)) << "row " << i;
+	EXPECT_EQ(matched.size(), 50u);
+	// Without the gate (radius 0, or no positions) all are matched.
+	mp.gateRadius_m = 0;
+	EXPECT_EQ(features::matchMutual(A, A, mp, &posA, &posB).size(), 100u);
+	mp.gateRadius_m = 3;
+	EXPECT_EQ(features::matchMutual(A, A, mp).size(), 100u);
+}
+
+TEST(Orb, ExtractorOnATexturedImage)
+{
+	cv::Mat img(480, 640, CV_8UC1, cv::Scalar(0));
+	std::mt19937 rng(8);
+	std::uniform_int_distribution<int> x(0, 639), y(0, 479), s(5, 40), g(40, 255);
+	for (int i = 0; i < 400; i++)
+	{
+		const cv::Point a(x(rng), y(rng));
+		cv::rectangle(img, a, a + cv::Point(s(rng), s(rng)), cv::Scalar(g(rng)), cv::FILLED);
+	}
+	features::OrbParams p;
+	p.numFeatures = 500;
+	features::OrbExtractor orb(p);
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat desc;
+	orb.extract(img, kps, desc);
+	EXPECT_LE(kps.size(), 500u);
+	EXPECT_GT(kps.size(), 300u);
+	EXPECT_EQ(desc.rows, static_cast<int>(kps.size()));
+	EXPECT_EQ(desc.cols, 32);
+	EXPECT_EQ(desc.type(), CV_8U);
+	EXPECT_GE(orb.lastThreshold(), p.minFastThreshold);
+	EXPECT_LE(orb.lastThreshold(), p.fastThreshold);
+	for (const auto& k : kps)
+	{
+		EXPECT_GE(k.pt.x, 0);
+		EXPECT_LT(k.pt.x, 640);
+		EXPECT_GE(k.pt.y, 0);
+		EXPECT_LT(k.pt.y, 480);
+	}
+	// Same image, same result.
+	std::vector<cv::KeyPoint> kps2;
+	cv::Mat desc2;
+	orb.extract(img, kps2, desc2);
+	ASSERT_EQ(kps2.size(), kps.size());
+	EXPECT_EQ(cv::norm(desc, desc2, cv::NORM_HAMMING), 0);
+	// Low contrast (steps of 8 to 14 grey levels): the FAST threshold is lowered.
+	cv::Mat faint(480, 640, CV_8UC1, cv::Scalar(0));
+	std::uniform_int_distribution<int> gf(8, 14);
+	for (int i = 0; i < 400; i++)
+	{
+		const cv::Point a(x(rng), y(rng));
+		cv::rectangle(faint, a, a + cv::Point(s(rng), s(rng)), cv::Scalar(gf(rng)), cv::FILLED);
+	}
+	orb.extract(faint, kps, desc);
+	EXPECT_LT(orb.lastThreshold(), p.fastThreshold);
+	EXPECT_GT(kps.size(), 100u);
+	EXPECT_EQ(desc.rows, static_cast<int>(kps.size()));
+	// A black image has nothing.
+	orb.extract(cv::Mat(480, 640, CV_8UC1, cv::Scalar(0)), kps, desc);
+	EXPECT_TRUE(kps.empty());
+	EXPECT_EQ(desc.rows, 0);
+}
+
+TEST(Orb, DistributeOverGridServesEveryCell)
+{
+	// 400 x 400 image, 4 x 4 cells of 100 px: 1000 strong keypoints crowd the top-left cell, and
+	// one weak keypoint sits in each of five other cells.
+	std::vector<cv::KeyPoint> kps;
+	std::mt19937 rng(9);
+	std::uniform_real_distribution<float> c(0, 99), resp(10, 100);
+	for (int i = 0; i < 1000; i++)
+		kps.emplace_back(cv::Point2f(c(rng), c(rng)), 7.f, -1, resp(rng));
+	const std::vector<cv::Point2f> lone = {{150, 50}, {350, 350}, {50, 399}, {399, 0}, {250, 250}};
+	for (const auto& pt : lone)
+		kps.emplace_back(pt, 7.f, -1, 1.0f);
+	const auto out = features::distributeOverGrid(kps, 400, 400, 4, 4, 64);
+	ASSERT_EQ(out.size(), 64u);
+	for (const auto& pt : lone)
+		EXPECT_EQ(std::count_if(out.begin(), out.end(),
+		                        [&](const cv::KeyPoint& k) { return k.pt == pt; }),
+		          1)
+		    << pt;
+	// The corner gets its share and the places left over, strongest first.
+	std::vector<float> cornerResp;
+	for (const auto& k : kps)
+		if (k.response > 1.0f)
+			cornerResp.push_back(k.response);
+	std::sort(cornerResp.rbegin(), cornerResp.rend());
+	float weakestKept = 1e9f;
+	for (const auto& k : out)
+		if (k.response > 1.0f)
+			weakestKept = std::min(weakestKept, k.response);
+	EXPECT_EQ(weakestKept, cornerResp[64 - lone.size() - 1]);
+	// No more than n asked: unchanged.
+	EXPECT_EQ(features::distributeOverGrid(kps, 400, 400, 4, 4, 5000).size(), kps.size());
+}

@@ -1,0 +1,366 @@
+// The paper's tracking through its plugins (ElevationRasterizer + OrbOdometry): a simulated
+// drive against ground truth, real KITTI frame pairs, the keyframe rule, and scans with
+// nothing to track.
+#include <rasterslam/core/plugin_loader.h>
+#include <rasterslam/io/kitti.h>
+#include <rasterslam/io/trajectory_io.h>
+#include <rasterslam/sim/scenario.h>
+#include <rasterslam/sim/simulator.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "test_support.h"
+
+namespace
+{
+using namespace rasterslam;
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+/** A rasterizer and an odometry, fresh, as the engine chains them. */
+struct Tracker
+{
+	std::shared_ptr<Rasterizer> rasterizer;
+	std::shared_ptr<Odometry> odometry;
+	explicit Tracker(const std::string& odometryParams = "")
+	{
+		auto& loader = PluginLoader::instance();
+		loader.load();
+		rasterizer = loader.create<Rasterizer>("rasterslam::ElevationRasterizer");
+		odometry = loader.create<Odometry>("rasterslam::OrbOdometry");
+		if (!rasterizer || !odometry)
+			return;
+		rasterizer->initialize(mrpt::containers::yaml::Map());
+		if (odometryParams.empty())
+			odometry->initialize(mrpt::containers::yaml::Map());
+		else
+			odometry->initialize(mrpt::containers::yaml::FromText(odometryParams));
+	}
+	OdometryResult step(const Scan& s, RasterFrame* keep = nullptr)
+	{
+		RasterFrame f;
+		rasterizer->rasterize(s, f);
+		auto r = odometry->process(s, &f);
+		if (keep)
+			*keep = f;
+		return r;
+	}
+};
+
+/** The first 41 scans of rawlogs/town-vlp16.yaml (made once). */
+const std::vector<Scan>& townScans()
+{
+	static const std::vector<Scan> scans = []
+	{
+		auto sc = sim::loadScenario(test::sourcePath("rawlogs/town-vlp16.yaml"));
+		if (std::getenv("HDL"))
+			sc.lidar = "hdl64";
+		const auto simu = sim::Simulator::fromScenario(sc);
+		std::vector<Scan> v;
+		for (std::size_t k = 0; k <= 40; k++)
+			v.push_back(simu.scan(k));
+		return v;
+	}();
+	return scans;
+}
+
+Eigen::Isometry3d toEigen(const mrpt::poses::CPose3D& p)
+{
+	Eigen::Isometry3d T;
+	T.matrix() = p.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
+	return T;
+}
+double angleDeg(const Eigen::Isometry3d& A, const Eigen::Isometry3d& B)
+{
+	return Eigen::AngleAxisd(A.linear().transpose() * B.linear()).angle() / kDeg;
+}
+Scan loadKitti(const std::string& dir, std::size_t i)
+{
+	Scan s;
+	s.index = i;
+	char name[32];
+	std::snprintf(name, sizeof name, "/velodyne/%06zu.bin", i);
+	s.points = io::loadKittiBin(dir + name);
+	return s;
+}
+}  // namespace
+
+TEST(OrbOdometry, SimulatedDriveFollowsGroundTruth)
+{
+	const auto& scans = townScans();
+	Tracker t;
+	ASSERT_TRUE(t.rasterizer && t.odometry);
+	// Poses chained as the engine does: against the last keyframe when T_kf_curr is given.
+	mrpt::poses::CPose3D pose, lastKf;
+	double travelled = 0, worstStep_m = 0;
+	for (std::size_t k = 0; k < scans.size(); k++)
+	{
+		const auto r = t.step(scans[k]);
+		if (k == 0)
+		{
+			EXPECT_EQ(r.status, TrackingStatus::Initializing);
+			EXPECT_TRUE(r.keyframe);
+		}
+		else
+		{
+			EXPECT_EQ(r.status, TrackingStatus::Ok) << "scan " << k << ": " << r.message;
+			EXPECT_GE(r.inliers, 30u);  // min_inliers
+			const auto gtStep = *scans[k].groundTruth - *scans[k - 1].groundTruth;
+			travelled += gtStep.norm();
+			worstStep_m = std::max(
+			    worstStep_m, (r.T_prev_curr.asVectorVal() - gtStep.asVectorVal()).head<3>().norm());
+		}
+		ASSERT_TRUE(r.T_kf_curr.has_value());
+		pose = lastKf + *r.T_kf_curr;
+		if (r.keyframe)
+			lastKf = pose;
+	}
+	const auto gt = *scans.back().groundTruth - *scans.front().groundTruth;
+	const double drift = (toEigen(pose).translation() - toEigen(gt).translation()).norm();
+	const double yawErr = std::abs(mrpt::math::wrapToPi(pose.yaw() - gt.yaw())) / kDeg;
+	ASSERT_NEAR(travelled, 24.0, 0.1);         // 40 scans at 6 m/s and 10 Hz
+	EXPECT_GT(std::abs(gt.yaw()) / kDeg, 30);  // the drive turns a corner
+	// Measured: drift 0.094 m (0.39 %), yaw 0.0004-0.115 deg (depending on where the keyframes
+	// fall), worst step 0.47 m (mostly z: a VLP-16 sees few beams on each object, so the
+	// highest point of a pixel moves in z).
+	EXPECT_LT(drift, 0.01 * travelled);
+	EXPECT_LT(yawErr, 0.3);
+	EXPECT_LT(worstStep_m, 0.75);
+	// Pitch and roll drift more (measured 2.8 deg in total after 24 m): a loose bound that
+	// still catches a broken rotation.
+	EXPECT_LT(angleDeg(toEigen(pose), toEigen(gt)), 4.0);
+}
+
+TEST(OrbOdometry, KittiFramePairs)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const std::string dir = test::sharedData("kitti00-0000-0100");
+	const auto gt = io::kittiCameraToVelodyne(io::loadTrajectory(dir + "/poses_semantickitti.txt"),
+	                                          io::loadKittiCalibTr(dir + "/calib.txt"));
+	ASSERT_EQ(gt.size(), 101u);
+	// Measured (translation, rotation error, inliers): 0-1: 2.7 cm, 0.07 deg, 360; 20-23:
+	// 2.1 cm, 0.07 deg, 305; 60-65 (4.7 m apart): 3.0 cm, 0.19 deg, 194.
+	for (const auto& [a, b] :
+	     std::vector<std::pair<std::size_t, std::size_t>>{{0, 1}, {20, 23}, {60, 65}})
+	{
+		SCOPED_TRACE(std::to_string(a) + "-" + std::to_string(b));
+		Tracker t;  // fresh: the second scan is tracked against the first
+		const auto r0 = t.step(loadKitti(dir, a));
+		EXPECT_EQ(r0.status, TrackingStatus::Initializing);
+		const auto r = t.step(loadKitti(dir, b));
+		ASSERT_EQ(r.status, TrackingStatus::Ok) << r.message;
+		EXPECT_GE(r.inliers, 100u);
+		const Eigen::Isometry3d truth = gt[a].pose.inverse() * gt[b].pose;
+		const Eigen::Isometry3d est = toEigen(r.T_prev_curr);
+		EXPECT_LT((est.translation() - truth.translation()).norm(), 0.05);
+		EXPECT_LT(angleDeg(est, truth), 0.3);
+		ASSERT_TRUE(r.T_kf_curr.has_value());
+		EXPECT_TRUE(
+		    toEigen(*r.T_kf_curr).isApprox(est, 1e-9));  // the first keyframe is the previous scan
+		EXPECT_GT(r.information(0, 0), 1.0);             // from the inliers, not the Lost guess
+	}
+}
+
+/** Checks the keyframe rule on one result: a keyframe when at least `minFrames` scans have
+ *  passed and `minShared` inliers are shared, or after `maxFrames`, or when lost. */
+void checkKeyframe(const OdometryResult& r, int sinceKf, int minFrames, std::size_t minShared,
+                   int maxFrames)
+{
+	const bool expected = (sinceKf >= minFrames && r.inliers >= minShared) ||
+	                      sinceKf >= maxFrames || r.status == TrackingStatus::Lost;
+	EXPECT_EQ(r.keyframe, expected)
+	    << sinceKf << " scans after the keyframe, " << r.inliers << " inliers";
+	EXPECT_EQ(static_cast<bool>(r.keyframeData), r.keyframe);
+	if (!r.keyframeData)
+		return;
+	const auto& k = *r.keyframeData;
+	EXPECT_GE(k.size(), 100u);
+	EXPECT_EQ(k.descriptors.size(), 32 * k.size());
+	EXPECT_EQ(k.xyz.size(), 3 * k.size());
+	EXPECT_EQ(k.v.size(), k.size());
+	EXPECT_EQ(k.octave.size(), k.size());
+}
+
+TEST(OrbOdometry, KeyframeRuleOnTheSimulatedDrive)
+{
+	const auto& scans = townScans();
+	struct Case
+	{
+		const char* params;
+		int minFrames;
+		std::size_t minShared;
+		int maxFrames;
+		std::string flags;  // expected for scans 0..13
+	};
+	// VLP-16 town: 164, 124, 104, 71, 75, 49 ... inliers against the first keyframe (measured),
+	// so the paper's 100 shared points are not reached by scan 5: lowered to 40 here.
+	const std::vector<Case> cases = {
+	    {"keyframe_min_shared: 40", 5, 40, 20, "K....K....K..."},
+	    {"keyframe_min_shared: 40\nkeyframe_min_frames: 3", 3, 40, 20, "K..K..K..K..K."},
+	    {"keyframe_min_shared: 100000\nkeyframe_max_frames: 6", 5, 100000, 6, "K.....K.....K."},
+	    {"", 5, 100, 20, ""},
+	};
+	for (const auto& c : cases)
+	{
+		SCOPED_TRACE(c.params);
+		Tracker t(c.params);
+		std::string flags;
+		int sinceKf = 0;
+		for (std::size_t k = 0; k < 14; k++)
+		{
+			const auto r = t.step(scans[k]);
+			if (k > 0)
+				checkKeyframe(r, ++sinceKf, c.minFrames, c.minShared, c.maxFrames);
+			flags += r.keyframe ? 'K' : '.';
+			if (r.keyframe)
+				sinceKf = 0;
+		}
+		EXPECT_EQ(flags[0], 'K');
+		if (!c.flags.empty())
+		{
+			EXPECT_EQ(flags, c.flags);
+		}
+	}
+}
+
+TEST(OrbOdometry, KeyframeRuleOnKitti)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const std::string dir = test::sharedData("kitti00-0000-0100");
+	// Measured inliers against keyframe 0: 360, 310, 230, 217, 202 for scans 1..5.
+	for (const auto& [params, minFrames, expected] :
+	     std::vector<std::tuple<const char*, int, std::string>>{
+	         {"", 5, "K....K.."}, {"keyframe_min_frames: 3", 3, "K..K..K."}})
+	{
+		SCOPED_TRACE(params);
+		Tracker t(params);
+		std::string flags;
+		int sinceKf = 0;
+		for (std::size_t k = 0; k <= 7; k++)
+		{
+			const auto r = t.step(loadKitti(dir, k));
+			if (k > 0)
+			{
+				EXPECT_EQ(r.status, TrackingStatus::Ok) << r.message;
+				checkKeyframe(r, ++sinceKf, minFrames, 100, 20);
+			}
+			flags += r.keyframe ? 'K' : '.';
+			if (r.keyframe)
+				sinceKf = 0;
+		}
+		EXPECT_EQ(flags, expected);
+	}
+}
+
+namespace
+{
+mrpt::poses::CPose3D stepOf(Tracker& t, const Scan& s, TrackingStatus expected)
+{
+	OdometryResult r;
+	RasterFrame f;
+	EXPECT_NO_THROW(r = t.step(s, &f));
+	EXPECT_EQ(r.status, expected) << "scan " << s.index << " (" << s.points.size() << " points)";
+	std::size_t pixels = 0;
+	for (const auto i : f.pixelToPoint)
+		pixels += i >= 0;
+	EXPECT_LT(pixels, 10u) << "scan " << s.index;
+	// The first scan is the first keyframe; later, a scan with too few features never becomes
+	// the reference: the next scan still has the old keyframe to match.
+	EXPECT_EQ(r.keyframe, expected == TrackingStatus::Initializing);
+	return r.T_prev_curr;
+}
+}  // namespace
+
+TEST(OrbOdometry, NothingToSeeIsLostWithThePrior)
+{
+	const mrpt::poses::CPose3D identity;
+	{  // Only flat, empty ground: all of it is removed.
+		const sim::Simulator simu(std::make_shared<const sim::World>(), sim::LidarModel::hdl64(),
+		                          sim::Route(), sim::SimulatorOptions());
+		Tracker t;
+		for (std::size_t k = 0; k < 3; k++)
+		{
+			const auto s =
+			    simu.scanFrom(mrpt::poses::CPose3D(0.6 * k, 0, 1.73, 0, 0, 0), k, 0.1 * k);
+			ASSERT_GT(s.points.size(), 50000u);
+			const auto T =
+			    stepOf(t, s, k == 0 ? TrackingStatus::Initializing : TrackingStatus::Lost);
+			EXPECT_EQ(T, identity);
+		}
+	}
+	{  // Only far points (a ring 70 m away) and a handful of near points.
+		Tracker t;
+		Scan far, few;
+		for (int a = 0; a < 3600; a++)
+			for (int z = 0; z < 10; z++)
+				far.points.push_back({float(70 * std::cos(a * 0.1 * kDeg)),
+				                      float(70 * std::sin(a * 0.1 * kDeg)), float(z), 0});
+		few.points = {{5, 0, 0, 0}, {0, 5, 1, 0}, {-5, 0, 2, 0}, {0, -5, 0.5f, 0}, {7, 7, 0, 0}};
+		far.index = 0;
+		few.index = 1;
+		EXPECT_EQ(stepOf(t, far, TrackingStatus::Initializing), identity);
+		EXPECT_EQ(stepOf(t, few, TrackingStatus::Lost), identity);
+		Scan none;
+		none.index = 2;
+		EXPECT_EQ(stepOf(t, none, TrackingStatus::Lost), identity);
+	}
+	{  // During a drive: the motion is the constant-velocity prior, the last good step.
+		const auto& scans = townScans();
+		Tracker t;
+		mrpt::poses::CPose3D last;
+		for (std::size_t k = 0; k < 6; k++)
+			last = t.step(scans[k]).T_prev_curr;
+		ASSERT_GT(last.norm(), 0.4);
+		Scan blank = scans[6];
+		blank.points.resize(5);
+		const auto T = stepOf(t, blank, TrackingStatus::Lost);
+		EXPECT_LT((T.asVectorVal() - last.asVectorVal()).norm(), 1e-9) << T << " vs " << last;
+	}
+}
+
+TEST(OrbOdometry, ImplausibleStepIsRejected)
+{
+	// KITTI 05 frames 540 and 1319: the same place 8.9 m and 28 deg apart, as two consecutive
+	// scans. The features match (ungated), but the step exceeds max_step_m (5 m): lost, with
+	// the prior (identity), not a jump.
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const std::string dir = test::sharedData("kitti05-revisit-0540-1319");
+	Tracker t;
+	Scan a, b;
+	a.index = 540;
+	a.points = io::loadKittiBin(dir + "/000540.bin");
+	b.index = 1319;
+	b.points = io::loadKittiBin(dir + "/001319.bin");
+	t.step(a);
+	const auto r = t.step(b);
+	EXPECT_EQ(r.status, TrackingStatus::Lost);
+	EXPECT_NE(r.message.find("rejected a step of 8."), std::string::npos) << r.message;
+	EXPECT_EQ(r.T_prev_curr, mrpt::poses::CPose3D());
+	// With a larger limit, the same pair is tracked (measured: 8.84 m).
+	Tracker loose("max_step_m: 20");
+	loose.step(a);
+	const auto r2 = loose.step(b);
+	EXPECT_EQ(r2.status, TrackingStatus::Ok) << r2.message;
+	EXPECT_NEAR(r2.T_prev_curr.norm(), 8.84, 0.2);
+}
+
+// BUG (plugins/orb_odometry/src/orb_odometry.cpp, process(): `r.keyframe = ... || !ok`): a
+// lost scan becomes the keyframe even when it has no features, so the good scan after it has
+// nothing to track against and is lost too. Enable once fixed.
+TEST(OrbOdometry, OneBlankScanLosesOnlyItself)
+{
+	const auto& scans = townScans();
+	Tracker t;
+	for (std::size_t k = 0; k < 10; k++)
+	{
+		Scan s = scans[k];
+		if (k == 6)
+			s.points.resize(5);
+		const auto r = t.step(s);
+		if (k != 0 && k != 6)
+		{
+			EXPECT_EQ(r.status, TrackingStatus::Ok) << "scan " << k << ": " << r.message;
+		}
+	}
+}
