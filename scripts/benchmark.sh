@@ -47,22 +47,24 @@ rate_note() {  # speed ratio of the first config against the last
 
 # --- KITTI ---------------------------------------------------------------------------
 if [ -d "$DATA" ]; then
-  rawlog="$WORK/kitti00-0000-0100.rawlog"
-  [ -f "$rawlog" ] || "$bin/kitti2rawlog" --velodyne "$DATA/velodyne" --poses "$DATA/poses_semantickitti.txt" \
-      --calib "$DATA/calib.txt" --times "$DATA/times.txt" --compress 0 -o "$rawlog" >/dev/null
-  echo "KITTI 00 frames 0-100 (101 HDL-64E scans, 84 m; plain rawlog); relative errors on 10..80 m segments"
-  header "vs SemanticKITTI poses" "vs official"
-  outs=(); names=()
-  for cfg in "$@"; do
-    name="$(basename "$cfg" .yaml)"; out="$WORK/kitti-$name"
-    "$bin/rasterslam" run --rawlog "$rawlog" --config "$cfg" --out "$out" --quiet >/dev/null
-    sem=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_semantickitti.txt" --calib "$DATA/calib.txt" --est "$out/trajectory.kitti" --segments 10:80:10 --json)
-    off=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_official.txt" --calib "$DATA/calib.txt" --est "$out/trajectory.kitti" --segments 10:80:10 --json)
-    row "$name" "$out" "$sem" "$off"
-    outs+=("$out"); names+=("$name")
+  for vc in 0 0.205; do
+    rawlog="$WORK/kitti00-0000-0100-vc$vc.rawlog"
+    [ -f "$rawlog" ] || "$bin/kitti2rawlog" --velodyne "$DATA/velodyne" --poses "$DATA/poses_semantickitti.txt" \
+        --calib "$DATA/calib.txt" --times "$DATA/times.txt" --compress 0 --vertical-correction-deg "$vc" -o "$rawlog" >/dev/null
+    echo "KITTI 00 frames 0-100 (101 HDL-64E scans, 84 m; plain rawlog; vertical angle correction $vc deg); relative errors on 10..80 m segments"
+    header "vs SemanticKITTI poses" "vs official"
+    outs=(); names=()
+    for cfg in "$@"; do
+      name="$(basename "$cfg" .yaml)"; out="$WORK/kitti-vc$vc-$name"
+      "$bin/rasterslam" run --rawlog "$rawlog" --config "$cfg" --out "$out" --quiet >/dev/null
+      sem=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_semantickitti.txt" --calib "$DATA/calib.txt" --est "$out/trajectory.kitti" --segments 10:80:10 --json)
+      off=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_official.txt" --calib "$DATA/calib.txt" --est "$out/trajectory.kitti" --segments 10:80:10 --json)
+      row "$name" "$out" "$sem" "$off"
+      outs+=("$out"); names+=("$name")
+    done
+    [ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
+    echo
   done
-  [ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
-  echo
 else
   echo "benchmark: $DATA not found: KITTI part skipped" >&2
 fi

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -41,6 +42,11 @@ usage:
   --external       write a small rawlog that references the .bin files (MRPT external
                    storage, absolute paths) instead of embedding the points
   --compress L     gzip level 0..9 (0: plain file; default 1)
+  --vertical-correction-deg D
+                   raise every point's elevation by D degrees (rotation about the
+                   horizontal axis across its azimuth): the known HDL-64 calibration error
+                   of the KITTI scans is 0.205 deg (default 0: points as recorded;
+                   not with --external)
   -o, --out FILE   rawlog to write (written to a temporary name, then renamed)
 
 Each scan becomes a CObservationPointCloud (label LIDAR, XYZI, sensorPose identity) and,
@@ -52,6 +58,23 @@ the Velodyne-frame pose inv(Tr) * P_i * Tr.
 {
 	std::cerr << "kitti2rawlog: " << msg << "\n(see kitti2rawlog --help)\n";
 	std::exit(2);
+}
+
+/** Rotates every point by `deg` about the horizontal axis perpendicular to its azimuth,
+ *  which raises its elevation angle by `deg` and keeps its range and azimuth. */
+void correctElevation(std::vector<PointXYZI>& pts, double deg)
+{
+	const double a = deg * M_PI / 180, ca = std::cos(a), sa = std::sin(a);
+	for (auto& p : pts)
+	{
+		const double rh = std::hypot(p.x, p.y);
+		if (rh < 1e-9) continue;
+		// In the vertical plane of the point: (rh, z) rotated by a.
+		const double rh2 = ca * rh - sa * p.z, z2 = sa * rh + ca * p.z;
+		p.x = static_cast<float>(p.x * rh2 / rh);
+		p.y = static_cast<float>(p.y * rh2 / rh);
+		p.z = static_cast<float>(z2);
+	}
 }
 
 std::size_t parseIndex(const std::string& opt, const std::string& v)
@@ -76,6 +99,7 @@ int main(int argc, char** argv)
 	std::optional<std::size_t> first, last;
 	bool external = false;
 	int compress = 1;
+	double verticalCorrection_deg = 0;
 	for (int i = 1; i < argc; i++)
 	{
 		const std::string a = argv[i];
@@ -105,6 +129,15 @@ int main(int argc, char** argv)
 			last = parseIndex(a, value());
 		else if (a == "--external")
 			external = true;
+		else if (a == "--vertical-correction-deg")
+		{
+			const auto v = value();
+			char* end = nullptr;
+			verticalCorrection_deg = std::strtod(v.c_str(), &end);
+			if (end != v.c_str() + v.size() || !std::isfinite(verticalCorrection_deg) ||
+				std::abs(verticalCorrection_deg) > 5)
+				usageError("--vertical-correction-deg expects a number of degrees in [-5, 5]");
+		}
 		else if (a == "--compress")
 		{
 			const auto v = value();
@@ -129,6 +162,8 @@ int main(int argc, char** argv)
 			posesFile = ifExists(fs::path(sequence) / ".." / ".." / "poses" / (seqName + ".txt"));
 		}
 	}
+	if (external && verticalCorrection_deg != 0)
+		usageError("--vertical-correction-deg changes the points: it cannot be used with --external");
 	if (!posesFile.empty() && calibFile.empty())
 		usageError("--poses needs --calib: KITTI poses are in the cam0 frame, and Tr turns them "
 				   "into Velodyne-frame poses");
@@ -184,6 +219,7 @@ int main(int argc, char** argv)
 			if (!external)
 			{
 				scan.points = io::loadKittiBin(bins[i]);
+				if (verticalCorrection_deg != 0) correctElevation(scan.points, verticalCorrection_deg);
 				writer.writeScan(scan);
 			}
 			else

@@ -29,7 +29,11 @@ class OrbOdometry : public Odometry
 		std::vector<cv::KeyPoint> kps;
 		cv::Mat desc;
 		std::vector<Eigen::Vector3f> pts;
+		bool groundValid = false;  //!< the rasterizer's ground plane n.p + d = 0
+		Eigen::Vector3d groundN = Eigen::Vector3d::UnitZ();
+		double groundD = 0;
 	};
+	Eigen::Isometry3d alignGround(const Eigen::Isometry3d& T_ref_cur, const Frame& ref, const Frame& cur) const;
 	void extract(const Scan& scan, const RasterFrame& raster, Frame& f);
 	features::RigidResult track(
 		const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed);
@@ -41,6 +45,8 @@ class OrbOdometry : public Odometry
 	int kfMinFrames_ = 5, kfMinShared_ = 100, kfMaxFrames_ = 20;
 	double maxStep_m_ = 5.0, sigma_m_ = 0.1;
 	bool constantVelocity_ = true;
+	bool alignGround_ = true;
+	double groundMaxCorrection_deg_ = 2.0;
 
 	std::unique_ptr<features::OrbExtractor> orb_;
 	std::unique_ptr<Frame> kf_;
@@ -97,6 +103,8 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	maxStep_m_ = p.getDouble("max_step_m", maxStep_m_);
 	sigma_m_ = p.getDouble("point_sigma_m", sigma_m_);
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
+	alignGround_ = p.getBool("align_ground", alignGround_);
+	groundMaxCorrection_deg_ = p.getDouble("ground_max_correction_deg", groundMaxCorrection_deg_);
 	auto positive = [&](double v, const char* key) {
 		if (!(v > 0)) throw ConfigError(p.context() + "." + key + ": must be > 0");
 	};
@@ -137,6 +145,9 @@ void OrbOdometry::extract(const Scan& scan, const RasterFrame& raster, Frame& f)
 		f.pts.emplace_back(q.x, q.y, q.z);
 		keep.push_back(i);
 	}
+	f.groundValid = raster.groundValid;
+	f.groundN = Eigen::Vector3d(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
+	f.groundD = raster.groundD;
 	f.desc.create(static_cast<int>(keep.size()), 32, CV_8U);
 	for (int r = 0; r < static_cast<int>(keep.size()); r++) desc.row(keep[r]).copyTo(f.desc.row(r));
 }
@@ -169,6 +180,26 @@ features::RigidResult OrbOdometry::track(
 	// Express inlier indices in the current frame's feature numbering.
 	for (auto& i : r.inliers) i = matches[i].a;
 	return r;
+}
+
+Eigen::Isometry3d OrbOdometry::alignGround(
+	const Eigen::Isometry3d& T, const Frame& ref, const Frame& cur) const
+{
+	// Features on an elevation image pin x, y and yaw well; the heights of the points behind
+	// the pixels are noisy, and so are z, roll and pitch. The ground planes of both scans pin
+	// those three (as LeGO-LOAM's two-step fit does): rotate the estimate by the smallest
+	// rotation that maps the current ground normal onto the reference's, then move it along
+	// the normal so that both planes coincide.
+	if (!ref.groundValid || !cur.groundValid) return T;
+	const Eigen::Vector3d n1 = T.linear() * cur.groundN;
+	const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(n1, ref.groundN);
+	if (Eigen::AngleAxisd(q).angle() > groundMaxCorrection_deg_ * M_PI / 180) return T;  // a slope change
+	Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+	out.linear() = q.toRotationMatrix() * T.linear();
+	const Eigen::Vector3d t = q * T.translation();
+	// Plane of the current scan in the reference frame: n_ref . x + (d_cur - n_ref . t) = 0.
+	out.translation() = t + (cur.groundD - ref.groundD - ref.groundN.dot(t)) * ref.groundN;
+	return out;
 }
 
 Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const
@@ -250,7 +281,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	++sinceKf_;
 	if (ok)
 	{
-		T_kf_curr = est.T;
+		T_kf_curr = alignGround_ && !bridged ? alignGround(est.T, *kf_, *cur) : est.T;
 		r.status = TrackingStatus::Ok;
 		r.inliers = est.inliers.size();
 		r.information = mrpt::math::CMatrixDouble66(features::pointToPointInformation(cur->pts, est.inliers, sigma_m_));

@@ -15,7 +15,7 @@ struct OrbParams
 	int gridCols = 8, gridRows = 8;  //!< each cell keeps its share of the strongest
 	int fastThreshold = 20;  //!< first FAST threshold tried...
 	int minFastThreshold = 5;  //!< ...halved down to this while too few corners are found
-	int levels = 8;
+	int levels = 3;  // BEV images are metric: scale barely changes between scans
 	float scaleFactor = 1.2f;
 	int edgeThreshold = 31;
 	int patchSize = 31;
