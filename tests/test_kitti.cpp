@@ -124,3 +124,29 @@ TEST(Kitti, BadInputIsReported)
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find("nothere' does not exist"), std::string::npos) << r.output;
 }
+
+TEST(Kitti, VerticalCorrectionRaisesEveryElevation)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto dir = test::tempDir("kitti");
+	const auto plain = (dir / "p.rawlog").string(), corr = (dir / "c.rawlog").string();
+	const auto base = test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --last 0 -o ";
+	ASSERT_EQ(test::runCommand(base + plain).exitCode, 0);
+	ASSERT_EQ(test::runCommand(base + corr + " --vertical-correction-deg 0.205").exitCode, 0);
+	const auto a = readAll(plain), b = readAll(corr);
+	ASSERT_EQ(a.size(), 1u);
+	ASSERT_EQ(b.size(), 1u);
+	ASSERT_EQ(a[0].points.size(), b[0].points.size());
+	for (size_t i = 0; i < a[0].points.size(); i += 997)
+	{
+		const auto &p = a[0].points[i], &q = b[0].points[i];
+		const double rp = std::hypot(p.x, p.y), rq = std::hypot(q.x, q.y);
+		if (rp < 1) continue;
+		EXPECT_NEAR(std::atan2(q.z, rq) - std::atan2(p.z, rp), 0.205 * M_PI / 180, 1e-5) << i;
+		EXPECT_NEAR(std::hypot(rq, q.z), std::hypot(rp, p.z), 1e-4) << i;  // range kept
+		EXPECT_NEAR(std::atan2(q.y, q.x), std::atan2(p.y, p.x), 1e-5) << i;  // azimuth kept
+	}
+	const auto r = test::runCommand(base + (dir / "x.rawlog").string() + " --external --vertical-correction-deg 0.2");
+	EXPECT_EQ(r.exitCode, 2) << r.output;
+}
