@@ -223,7 +223,13 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		rec.ms.odometry = msSince(tOdo);
 		rec.status = odo.status;
 		rec.inliers = odo.inliers;
-		if (odo.status == TrackingStatus::Lost) ++res.lost;
+		if (odo.status == TrackingStatus::Lost)
+		{
+			++res.lost;
+			MRPT_LOG_THROTTLE_WARN_STREAM(
+				1.0, "scan " << scan->index << ": tracking lost (" << odo.message
+							 << "); using the motion prior");
+		}
 		if (!haveKf) currPose = mrpt::poses::CPose3D();
 		else if (odo.T_kf_curr)
 			currPose = lastKfPose + *odo.T_kf_curr;

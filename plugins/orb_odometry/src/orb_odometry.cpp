@@ -95,7 +95,7 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	ransac_.inlierThreshold_m = p.getDouble("ransac_threshold_m", 0.3);
 	ransac_.maxIterations = p.getInt("ransac_max_iterations", 300);
 	ransac_.confidence = p.getDouble("ransac_confidence", 0.999);
-	ransac_.minInliers = p.getInt("min_inliers", 30);
+	ransac_.minInliers = p.getInt("min_inliers", 20);
 	ransac_.refinements = p.getInt("refinements", 3);
 	kfMinFrames_ = p.getInt("keyframe_min_frames", kfMinFrames_);
 	kfMinShared_ = p.getInt("keyframe_min_shared", kfMinShared_);
