@@ -57,7 +57,8 @@ int listPlugins()
 	std::printf("  %-14s %-32s %s\n", "ROLE", "CLASS", "MODULE");
 	for (const auto& c : classes)
 		std::printf("  %-14s %-32s %s\n", c.role.c_str(), c.className.c_str(), c.module.c_str());
-	return 0;
+	for (const auto& f : loader.failedModules()) std::printf("not loaded: %s\n", f.c_str());
+	return loader.failedModules().empty() ? 0 : cli::kExitError;
 }
 }  // namespace
 

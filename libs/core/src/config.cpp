@@ -168,6 +168,15 @@ std::vector<double> ParamReader::getDoubles(const std::string& key, const std::v
 	return v;
 }
 
+std::string ParamReader::getPath(const std::string& key, const std::string& def)
+{
+	std::string v = getString(key, def);
+	if (!v.empty() && !source_.empty() && std::filesystem::path(v).is_relative())
+		v = (std::filesystem::path(source_).parent_path() / v).lexically_normal().string();
+	inForce_[key] = v;
+	return v;
+}
+
 void ParamReader::finish() const
 {
 	if (!node_.isMap()) return;

@@ -318,6 +318,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
 	}
 	res.stopReason = source.stopReason();
+	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();
 	if (mapManager_) mapManager_->finish();
 
 	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))

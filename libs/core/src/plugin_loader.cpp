@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <iostream>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -116,7 +117,23 @@ void PluginLoader::load(const std::vector<std::string>& only)
 			}
 			std::sort(files.begin(), files.end());  // deterministic load order
 			for (const auto& f : files)
-				if (seenNames.insert(f.filename().string()).second) loadModule(f.string());
+			{
+				if (!seenNames.insert(f.filename().string()).second) continue;
+				// One broken module found on the path must not stop every run: it is
+				// reported, and a config naming one of its classes fails with that report.
+				try
+				{
+					loadModule(f.string());
+				}
+				catch (const std::exception& e)
+				{
+					if (failedSet_.insert(f.string()).second)
+					{
+						failed_.push_back(e.what());
+						std::cerr << "rasterslam: warning: " << e.what() << "\n";
+					}
+				}
+			}
 		}
 		return;
 	}
@@ -178,6 +195,7 @@ Plugin::Ptr PluginLoader::create(
 	for (const auto& c : registeredClasses())
 		if (c.role == roleName) known += "\n  " + c.className;
 	if (known.empty()) known = " (none: were the plugins built, and found in the search path?)";
+	for (const auto& f : failed_) known += "\n(not loaded: " + f + ")";
 
 	const auto* id = mrpt::rtti::findRegisteredClass(className, false);
 	if (!id || !id->ptrCreateObject)

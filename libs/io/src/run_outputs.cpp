@@ -1,4 +1,5 @@
 #include <mrpt/core/format.h>
+#include <mrpt/poses/CPose3DQuat.h>
 #include <rasterslam/io/run_outputs.h>
 #include <rasterslam/io/trajectory_io.h>
 #include <unistd.h>
@@ -68,6 +69,21 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 			r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total);
 	writeFileAtomically((d / "timings.csv").string(), csv);
 
+	if (!res.loopDecisions.empty())
+	{
+		std::string txt =
+			"# query_stamp candidate_stamp score inliers verified accepted reason x y z qx qy qz qw\n";
+		for (const auto& l : res.loopDecisions)
+		{
+			const auto q = mrpt::poses::CPose3DQuat(l.T_candidate_query);
+			txt += mrpt::format(
+				"%.6f %.6f %.6f %zu %d %d %s %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", l.queryStamp,
+				l.candidateStamp, l.score, l.inliers, l.verified ? 1 : 0, l.accepted ? 1 : 0,
+				l.reason.empty() ? "-" : l.reason.c_str(), q.x(), q.y(), q.z(), q.quat().x(),
+				q.quat().y(), q.quat().z(), q.quat().r());
+		}
+		writeFileAtomically((d / "loops.txt").string(), txt);
+	}
 	{
 		const auto tmp = (d / (".pose_graph.graph.tmp-" + std::to_string(::getpid()))).string();
 		res.graph.saveToTextFile(tmp);

@@ -40,6 +40,8 @@ class ParamReader
 	std::string getChoice(
 		const std::string& key, const std::string& def, const std::vector<std::string>& allowed);
 	std::vector<double> getDoubles(const std::string& key, const std::vector<double>& def);
+	/** A file path; a relative one is taken relative to the config file's folder. */
+	std::string getPath(const std::string& key, const std::string& def);
 
 	/** Throws ConfigError listing keys present in the node that were never read. */
 	void finish() const;

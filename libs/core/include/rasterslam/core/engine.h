@@ -57,6 +57,8 @@ struct RunResult
 	std::size_t keyframes = 0, lost = 0, late = 0, loopEdges = 0, skippedBadScans = 0;
 	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
 	OptimizerResult optimizer;
+	/** What the loop detector examined (empty without one). */
+	std::vector<LoopDecision> loopDecisions;
 	/** Empty if the input ended normally; else where and why it stopped early. */
 	std::string stopReason;
 	/** Non-empty when the run stopped on bad input (outputs are still valid up to there). */

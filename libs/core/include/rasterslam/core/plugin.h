@@ -127,6 +127,20 @@ struct LoopConstraint
 	std::size_t inliers = 0;
 };
 
+/** One candidate a loop detector examined, for loops.txt. */
+struct LoopDecision
+{
+	double queryStamp = 0;
+	double candidateStamp = -1;  //!< stamp of the matched keyframe's scan, -1 if none
+	uint64_t candidateMap = 0;  //!< the candidate local map
+	double score = 0;  //!< normalized BOW score
+	std::size_t inliers = 0;
+	bool verified = false;  //!< the geometric check passed
+	bool accepted = false;  //!< it became a loop edge
+	std::string reason;  //!< one word: ok, score, inliers, ...
+	mrpt::poses::CPose3D T_candidate_query;
+};
+
 class LoopDetector : public Plugin
 {
 	DEFINE_VIRTUAL_MRPT_OBJECT(LoopDetector)
@@ -134,6 +148,11 @@ class LoopDetector : public Plugin
 	std::string role() const override { return "loop_detector"; }
 	virtual std::vector<LoopConstraint> detect(
 		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) = 0;
+	/** Every candidate examined so far, in order. */
+	const std::vector<LoopDecision>& decisions() const { return decisions_; }
+
+   protected:
+	std::vector<LoopDecision> decisions_;
 };
 
 struct OptimizerResult

@@ -4,6 +4,7 @@
 #include <rasterslam/core/plugin.h>
 
 #include <map>
+#include <set>
 #include <memory>
 #include <string>
 #include <vector>
@@ -22,7 +23,8 @@ struct PluginClassInfo
  *  1. the directories of $RASTERSLAM_PLUGIN_PATH (colon-separated),
  *  2. <dir of the running program>/../lib/rasterslam/plugins (a relocated install),
  *  3. the build tree's plugin folder, 4. the install prefix's plugin folder.
- *  A file name found in several directories is loaded from the first only. Modules are
+ *  A file name found in several directories is loaded from the first only. Loading every
+ *  module found, one that fails is reported (failedModules(), stderr) and skipped. Modules are
  *  never unloaded (MRPT's class registry would keep dangling pointers). */
 class PluginLoader
 {
@@ -53,10 +55,14 @@ class PluginLoader
 	}
 
 	const std::vector<std::string>& loadedModules() const { return loaded_; }
+	/** Modules found by load() without a list that failed to load, with the reason. */
+	const std::vector<std::string>& failedModules() const { return failed_; }
 
    private:
 	PluginLoader() = default;
 	std::vector<std::string> loaded_;  //!< absolute paths, in load order
+	std::vector<std::string> failed_;
+	std::set<std::string> failedSet_;
 	std::map<std::string, std::string> classModule_;  //!< class name -> module
 };
 

@@ -16,6 +16,7 @@ Eigen::Isometry3d toIsometry(const mrpt::poses::CPose3D& p);
  *  - trajectory.tum, trajectory.kitti: one pose per processed scan;
  *  - groundtruth.tum, groundtruth.kitti: when every processed scan had ground truth;
  *  - timings.csv: per-scan stage times (ms), status, inliers, keyframe flag;
+ *  - loops.txt: every loop candidate examined, when a loop detector ran;
  *  - pose_graph.graph: the keyframe pose graph in MRPT's text format (opens in MRPT tools);
  *  - run.yaml: `runInfo` as given (config, versions, input, counts, summary). */
 void writeRunOutputs(

@@ -1,0 +1,221 @@
+// Image database: inverted index (word -> entries with their weight) for scoring only the
+// entries that share a word with the query, entries that can be removed, and per entry the
+// direct index.
+#include <mrpt/core/exceptions.h>
+#include <mrpt/serialization/CArchive.h>
+#include <rasterslam/bow/vocabulary.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+using namespace rasterslam::bow;
+
+Database::EntryId Database::add(const BowVector& bow, const FeatureVector& fv)
+{
+	const EntryId id = next_++;
+	entries_[id] = Entry{bow, fv};
+	// Ids only grow, so every inverted list stays sorted by entry: remove() can bisect.
+	for (const auto& [w, v] : bow)
+		inverted_[w].emplace_back(id, v);
+	return id;
+}
+
+bool Database::remove(EntryId e)
+{
+	const auto it = entries_.find(e);
+	if (it == entries_.end())
+		return false;
+	for (const auto& [w, v] : it->second.bow)
+	{
+		const auto list = inverted_.find(w);
+		if (list == inverted_.end())
+			continue;
+		auto& l = list->second;
+		const auto at = std::lower_bound(l.begin(), l.end(), e,
+		                                 [](const auto& p, EntryId id) { return p.first < id; });
+		if (at != l.end() && at->first == e)
+			l.erase(at);
+		if (l.empty())
+			inverted_.erase(list);
+	}
+	entries_.erase(it);
+	return true;
+}
+
+std::vector<Database::Result> Database::query(const BowVector& bow, std::size_t maxResults) const
+{
+	std::vector<Result> out;
+	if (bow.empty() || maxResults == 0 || entries_.empty())
+		return out;
+	// For L1-normalized non-negative vectors the score is 0.5 * sum over common words of
+	// (a + b - |a - b|) = sum of min(a, b): one min and one add per posting. Scores
+	// gather in a dense array by entry id while ids are not much sparser than the live entries
+	// (hashing every posting would cost several times the whole scoring); otherwise in a hash map.
+	const bool dense = next_ <= 4 * entries_.size() + 4096;
+	std::vector<double> acc;
+	std::vector<uint8_t> seen;
+	std::unordered_map<EntryId, double> sparse;
+	std::vector<EntryId> touched;
+	if (dense)
+	{
+		acc.assign(next_, 0.0);
+		seen.assign(next_, 0);
+	}
+	else
+		sparse.reserve(entries_.size());
+	for (const auto& [w, qv] : bow)
+	{
+		const auto list = inverted_.find(w);
+		if (list == inverted_.end())
+			continue;
+		const double a = std::abs(qv);
+		if (dense)  // the hot loop: kept free of the hash map
+		{
+			for (const auto& [e, v] : list->second)
+			{
+				if (!seen[e])
+				{
+					seen[e] = 1;
+					touched.push_back(e);
+				}
+				acc[e] += std::min(a, std::abs(v));
+			}
+			continue;
+		}
+		for (const auto& [e, v] : list->second)
+		{
+			auto [it, inserted] = sparse.try_emplace(e, 0.0);
+			if (inserted)
+				touched.push_back(e);
+			it->second += std::min(a, std::abs(v));
+		}
+	}
+	out.reserve(touched.size());
+	for (const EntryId e : touched)
+	{
+		const double s = dense ? acc[e] : sparse[e];
+		out.push_back({e, std::clamp(s, 0.0, 1.0)});
+	}
+	const auto better = [](const Result& x, const Result& y)
+	{ return x.score != y.score ? x.score > y.score : x.entry < y.entry; };
+	if (out.size() > maxResults)
+	{
+		std::partial_sort(out.begin(), out.begin() + maxResults, out.end(), better);
+		out.resize(maxResults);
+	}
+	else
+		std::sort(out.begin(), out.end(), better);
+	return out;
+}
+
+const FeatureVector& Database::featureVector(EntryId e) const
+{
+	const auto it = entries_.find(e);
+	if (it == entries_.end())
+		throw std::out_of_range("Database: no entry " + std::to_string(e));
+	return it->second.fv;
+}
+
+const BowVector& Database::bowVector(EntryId e) const
+{
+	const auto it = entries_.find(e);
+	if (it == entries_.end())
+		throw std::out_of_range("Database: no entry " + std::to_string(e));
+	return it->second.bow;
+}
+
+uint8_t Database::serializeGetVersion() const
+{
+	return 0;
+}
+
+// The inverted index is not stored: it is rebuilt from the entries on reading, so it cannot
+// disagree with them.
+void Database::serializeTo(mrpt::serialization::CArchive& out) const
+{
+	out << static_cast<int32_t>(levelsUp_) << next_ << static_cast<uint32_t>(entries_.size());
+	for (const auto& [id, e] : entries_)
+	{
+		out << id << static_cast<uint32_t>(e.bow.size());
+		for (const auto& [w, v] : e.bow)
+			out << w << v;
+		out << static_cast<uint32_t>(e.fv.size());
+		for (const auto& [node, features] : e.fv)
+		{
+			out << node << static_cast<uint32_t>(features.size());
+			for (const uint32_t f : features)
+				out << f;
+		}
+	}
+}
+
+void Database::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
+{
+	const auto bad = [](const std::string& why)
+	{ THROW_EXCEPTION("rasterslam::bow::Database: inconsistent stream: " + why); };
+	int32_t levelsUp = 0;
+	EntryId next = 0;
+	uint32_t count = 0;
+	std::map<EntryId, Entry> entries;
+	switch (version)
+	{
+		case 0:
+		{
+			in >> levelsUp >> next >> count;
+			if (count > next)
+				bad("more entries than ids handed out");
+			for (uint32_t i = 0; i < count; ++i)
+			{
+				EntryId id = 0;
+				uint32_t words = 0, nodes = 0;
+				in >> id >> words;
+				if (id >= next || (!entries.empty() && id <= entries.rbegin()->first))
+					bad("entry ids out of range or not increasing");
+				Entry e;
+				WordId last = 0;
+				for (uint32_t j = 0; j < words; ++j)
+				{
+					WordId w = 0;
+					double v = 0;
+					in >> w >> v;
+					if ((j > 0 && w <= last) || !std::isfinite(v))
+						bad("bag of words not sorted or weight not finite");
+					last = w;
+					e.bow.emplace_hint(e.bow.end(), w, v);
+				}
+				in >> nodes;
+				for (uint32_t j = 0; j < nodes; ++j)
+				{
+					NodeId node = 0;
+					uint32_t n = 0;
+					in >> node >> n;
+					auto& features = e.fv[node];
+					if (!features.empty())
+						bad("node repeated in a direct index");
+					for (uint32_t f = 0; f < n; ++f)
+					{
+						uint32_t index = 0;
+						in >> index;
+						features.push_back(index);
+					}
+				}
+				entries.emplace_hint(entries.end(), id, std::move(e));
+			}
+			break;
+		}
+		default:
+			MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+	}
+	if (levelsUp < 0)
+		bad("negative direct index level");
+	levelsUp_ = levelsUp;
+	next_ = next;
+	entries_ = std::move(entries);
+	inverted_.clear();
+	for (const auto& [id, e] : entries_)
+		for (const auto& [w, v] : e.bow)
+			inverted_[w].emplace_back(id, v);
+}

@@ -1,0 +1,429 @@
+// Bag of binary words: k-medians clustering of synthetic descriptors, seeding determinism,
+// the L1 score, TF-IDF, the database (add, remove, query), the direct index and MRPT
+// serialization (round trip, unknown version, truncated stream).
+#include <mrpt/io/CMemoryStream.h>
+#include <mrpt/serialization/CArchive.h>
+#include <rasterslam/bow/vocabulary.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "test_support.h"
+
+using namespace rasterslam::bow;
+
+namespace
+{
+Descriptor randomDescriptor(std::mt19937& rng)
+{
+	Descriptor d;
+	for (auto& b : d)
+		b = static_cast<uint8_t>(rng() & 0xff);
+	return d;
+}
+
+/** `proto` with `flips` random bits flipped (some may coincide). */
+Descriptor noisy(const Descriptor& proto, int flips, std::mt19937& rng)
+{
+	Descriptor d = proto;
+	for (int i = 0; i < flips; ++i)
+	{
+		const unsigned bit = rng() % 256;
+		d[bit / 8] = static_cast<uint8_t>(d[bit / 8] ^ (1u << (bit % 8)));
+	}
+	return d;
+}
+
+std::vector<Descriptor> prototypes(int n, std::mt19937& rng)
+{
+	std::vector<Descriptor> p;
+	for (int i = 0; i < n; ++i)
+		p.push_back(randomDescriptor(rng));
+	return p;
+}
+
+/** Images of noisy copies of prototypes: image i holds `perImage` copies of prototype
+ *  (i + j) % protos for j < spread, so images differ in which prototypes they show. */
+std::vector<std::vector<Descriptor>> clusteredImages(const std::vector<Descriptor>& protos,
+                                                     int images, int spread, int perImage,
+                                                     std::mt19937& rng)
+{
+	std::vector<std::vector<Descriptor>> out(images);
+	for (int i = 0; i < images; ++i)
+		for (int j = 0; j < spread; ++j)
+			for (int c = 0; c < perImage; ++c)
+				out[i].push_back(noisy(protos[(i + j) % protos.size()], 6, rng));
+	return out;
+}
+
+std::vector<uint8_t> bytesOf(const mrpt::serialization::CSerializable& obj)
+{
+	mrpt::io::CMemoryStream buf;
+	auto arch = mrpt::serialization::archiveFrom(buf);
+	arch << obj;
+	const auto* p = static_cast<const uint8_t*>(buf.getRawBufferData());
+	return {p, p + buf.getTotalBytesCount()};
+}
+
+template <class T>
+std::shared_ptr<T> roundTrip(const T& obj)
+{
+	mrpt::io::CMemoryStream buf;
+	auto arch = mrpt::serialization::archiveFrom(buf);
+	arch << obj;
+	buf.Seek(0);
+	return std::dynamic_pointer_cast<T>(arch.ReadObject());
+}
+
+/** Writes `obj`, sets the version byte after `name` to 9 and expects reading to throw. */
+void expectUnknownVersionThrows(const mrpt::serialization::CSerializable& obj,
+                                const std::string& name)
+{
+	mrpt::io::CMemoryStream buf;
+	auto arch = mrpt::serialization::archiveFrom(buf);
+	arch << obj;
+	auto* bytes = static_cast<uint8_t*>(buf.getRawBufferData());
+	const std::string raw(reinterpret_cast<const char*>(bytes), buf.getTotalBytesCount());
+	const auto at = raw.find(name);
+	ASSERT_NE(at, std::string::npos);
+	ASSERT_EQ(bytes[at + name.size()], 0);  // version 0
+	bytes[at + name.size()] = 9;
+	buf.Seek(0);
+	EXPECT_ANY_THROW(arch.ReadObject());
+}
+
+struct Fixture
+{
+	std::vector<Descriptor> protos;
+	std::vector<std::vector<Descriptor>> images;
+	Vocabulary voc;
+};
+
+Fixture makeFixture(int k = 6, int levels = 3)
+{
+	std::mt19937 rng(42);
+	Fixture f;
+	f.protos = prototypes(40, rng);
+	f.images = clusteredImages(f.protos, 12, 8, 10, rng);
+	TrainParams p;
+	p.branching = k;
+	p.levels = levels;
+	p.seed = 3;
+	f.voc.train(f.images, p);
+	return f;
+}
+}  // namespace
+
+TEST(Bow, ClustersSeparablePrototypes)
+{
+	std::mt19937 rng(7);
+	const auto protos = prototypes(8, rng);
+	std::vector<std::vector<Descriptor>> copies(8);  // one image per prototype
+	for (int p = 0; p < 8; ++p)
+		for (int c = 0; c < 200; ++c)
+			copies[p].push_back(noisy(protos[p], 4, rng));
+	Vocabulary voc;
+	TrainParams params;
+	params.branching = 8;
+	params.levels = 1;
+	voc.train(copies, params);
+	EXPECT_EQ(voc.words(), 8u);
+	EXPECT_EQ(voc.branching(), 8);
+	EXPECT_EQ(voc.levels(), 1);
+	EXPECT_EQ(voc.trainingImages(), 8u);
+	std::set<WordId> words;
+	for (int p = 0; p < 8; ++p)
+	{
+		const WordId w = voc.wordOf(protos[p]);
+		words.insert(w);
+		for (const auto& d : copies[p])
+			ASSERT_EQ(voc.wordOf(d), w) << "prototype " << p;
+	}
+	EXPECT_EQ(words.size(), 8u);  // different prototypes, different words
+}
+
+TEST(Bow, SeedingIsDeterministic)
+{
+	std::mt19937 rng(11);
+	std::vector<std::vector<Descriptor>> images(5);
+	for (auto& img : images)
+		for (int i = 0; i < 300; ++i)
+			img.push_back(randomDescriptor(rng));
+	TrainParams p;
+	p.branching = 5;
+	p.levels = 3;
+	p.seed = 9;
+	Vocabulary a, b, c;
+	a.train(images, p);
+	b.train(images, p);
+	EXPECT_EQ(bytesOf(a), bytesOf(b));
+	for (const auto& d : images[2])
+		EXPECT_EQ(a.wordOf(d), b.wordOf(d));
+	p.seed = 10;
+	c.train(images, p);  // may differ; it must still be a valid tree
+	EXPECT_GT(c.words(), 1u);
+	EXPECT_LE(c.words(), 125u);
+}
+
+TEST(Bow, TrainRejectsBadInput)
+{
+	Vocabulary v;
+	EXPECT_THROW(v.train({}, TrainParams{}), std::invalid_argument);
+	EXPECT_THROW(v.train({{}, {}}, TrainParams{}), std::invalid_argument);
+	TrainParams p;
+	p.branching = 1;
+	EXPECT_THROW(v.train({{Descriptor{}}}, p), std::invalid_argument);
+	p.branching = 4;
+	p.levels = 0;
+	EXPECT_THROW(v.train({{Descriptor{}}}, p), std::invalid_argument);
+	EXPECT_TRUE(v.empty());
+	EXPECT_ANY_THROW(v.wordOf(Descriptor{}));
+}
+
+TEST(Bow, Score)
+{
+	const BowVector a{{1, 0.5}, {4, 0.25}, {9, 0.25}};
+	const BowVector b{{2, 0.6}, {5, 0.4}};
+	const BowVector c{{1, 0.25}, {4, 0.25}, {7, 0.5}};
+	EXPECT_NEAR(Vocabulary::score(a, a), 1.0, 1e-12);
+	EXPECT_EQ(Vocabulary::score(a, b), 0.0);
+	EXPECT_EQ(Vocabulary::score(a, {}), 0.0);
+	EXPECT_EQ(Vocabulary::score({}, {}), 0.0);
+	// 1 - 0.5 * (0.25 + 0 + 0.25 + 0.5) = 0.5
+	EXPECT_NEAR(Vocabulary::score(a, c), 0.5, 1e-12);
+	EXPECT_DOUBLE_EQ(Vocabulary::score(a, c), Vocabulary::score(c, a));
+	const auto f = makeFixture();
+	for (std::size_t i = 0; i < f.images.size(); ++i)
+		for (std::size_t j = 0; j < f.images.size(); ++j)
+		{
+			BowVector x, y;
+			f.voc.transform(f.images[i], x);
+			f.voc.transform(f.images[j], y);
+			const double s = Vocabulary::score(x, y);
+			EXPECT_GE(s, 0.0);
+			EXPECT_LE(s, 1.0);
+			EXPECT_DOUBLE_EQ(s, Vocabulary::score(y, x));
+		}
+}
+
+TEST(Bow, TransformIsL1Normalized)
+{
+	const auto f = makeFixture();
+	for (const auto& img : f.images)
+	{
+		BowVector v;
+		f.voc.transform(img, v);
+		ASSERT_FALSE(v.empty());
+		double sum = 0;
+		for (const auto& [w, x] : v)
+		{
+			EXPECT_GT(x, 0.0);
+			EXPECT_LT(w, f.voc.words());
+			sum += x;
+		}
+		EXPECT_NEAR(sum, 1.0, 1e-12);
+	}
+	BowVector none{{3, 1.0}};
+	f.voc.transform({}, none);
+	EXPECT_TRUE(none.empty());
+}
+
+TEST(Bow, IdfFavoursRareWords)
+{
+	std::mt19937 rng(5);
+	const auto protos = prototypes(8, rng);
+	// Prototype 0 in every image, prototype 1 in image 0 only, the others in a few; about
+	// 200 copies of each overall, so that the clusters are found alike.
+	std::vector<std::vector<Descriptor>> images(10);
+	for (int i = 0; i < 10; ++i)
+	{
+		for (int c = 0; c < 20; ++c)
+			images[i].push_back(noisy(protos[0], 4, rng));
+		for (int p = 2; p < 8; ++p)
+			if ((i + p) % 3 == 0)
+				for (int c = 0; c < 60; ++c)
+					images[i].push_back(noisy(protos[p], 4, rng));
+	}
+	for (int c = 0; c < 200; ++c)
+		images[0].push_back(noisy(protos[1], 4, rng));
+	Vocabulary voc;
+	TrainParams p;
+	p.branching = 8;
+	p.levels = 1;
+	voc.train(images, p);
+	const WordId common = voc.wordOf(protos[0]), rare = voc.wordOf(protos[1]);
+	ASSERT_NE(common, rare);
+	EXPECT_EQ(voc.idf(common), 0.0);
+	EXPECT_NEAR(voc.idf(rare), std::log(10.0), 1e-12);
+	EXPECT_LT(voc.idf(common), voc.idf(voc.wordOf(protos[2])));
+	// Features of the word seen everywhere contribute nothing.
+	BowVector v;
+	voc.transform({protos[0], protos[0]}, v);
+	EXPECT_TRUE(v.empty());
+	voc.transform({protos[0], protos[1]}, v);
+	ASSERT_EQ(v.size(), 1u);
+	EXPECT_EQ(v.begin()->first, rare);
+	EXPECT_DOUBLE_EQ(v.begin()->second, 1.0);
+}
+
+TEST(Bow, DatabaseAddRemoveQuery)
+{
+	const auto f = makeFixture();
+	Database db(1);
+	std::vector<BowVector> bows(f.images.size());
+	for (std::size_t i = 0; i < f.images.size(); ++i)
+	{
+		f.voc.transform(f.images[i], bows[i]);
+		EXPECT_EQ(db.add(bows[i]), i);
+	}
+	EXPECT_EQ(db.size(), f.images.size());
+	for (std::size_t i = 0; i < f.images.size(); ++i)
+	{
+		const auto r = db.query(bows[i], 5);
+		ASSERT_FALSE(r.empty());
+		EXPECT_EQ(r.front().entry, i);
+		EXPECT_NEAR(r.front().score, 1.0, 1e-9);
+		EXPECT_LE(r.size(), 5u);
+		for (std::size_t j = 1; j < r.size(); ++j)
+		{
+			EXPECT_TRUE(r[j - 1].score > r[j].score ||
+			            (r[j - 1].score == r[j].score && r[j - 1].entry < r[j].entry));
+			EXPECT_NEAR(r[j].score, Vocabulary::score(bows[i], bows[r[j].entry]), 1e-9);
+		}
+	}
+	EXPECT_TRUE(db.remove(3));
+	EXPECT_FALSE(db.remove(3));
+	EXPECT_FALSE(db.contains(3));
+	EXPECT_EQ(db.size(), f.images.size() - 1);
+	EXPECT_THROW(db.bowVector(3), std::out_of_range);
+	// The inverted index no longer holds entry 3: its own vector finds the others only.
+	const auto r = db.query(bows[3], 100);
+	EXPECT_FALSE(r.empty());
+	for (const auto& x : r)
+		EXPECT_NE(x.entry, 3u);
+	// Ids are not reused.
+	const auto id = db.add(bows[3]);
+	EXPECT_EQ(id, f.images.size());
+	EXPECT_EQ(db.query(bows[3], 1).front().entry, id);
+	// No word in common, nothing found.
+	EXPECT_TRUE(db.query(BowVector{{999999, 1.0}}, 10).empty());
+	EXPECT_TRUE(db.query(bows[0], 0).empty());
+}
+
+TEST(Bow, DirectIndex)
+{
+	const auto f = makeFixture(4, 3);
+	const auto& img = f.images[0];
+	for (const int up : {0, 1, 2, 99})
+	{
+		BowVector v;
+		FeatureVector fv;
+		f.voc.transform(img, v, &fv, up);
+		std::vector<int> seen(img.size(), 0);
+		for (const auto& [node, features] : fv)
+		{
+			EXPECT_NE(node, 0u);  // never the root
+			for (const uint32_t i : features)
+			{
+				ASSERT_LT(i, img.size());
+				++seen[i];
+			}
+			if (up == 0)  // at the leaves a node is a word
+			{
+				for (const uint32_t i : features)
+				{
+					EXPECT_EQ(f.voc.wordOf(img[i]), f.voc.wordOf(img[features[0]]));
+				}
+			}
+		}
+		for (const int s : seen)
+		{
+			EXPECT_EQ(s, 1);
+		}
+		if (up == 99)
+		{
+			EXPECT_LE(fv.size(), 4u);  // clamped at the children of the root
+		}
+	}
+	// Equal descriptors share their node whatever the level.
+	BowVector v;
+	FeatureVector fv;
+	f.voc.transform({img[5], img[7], img[5]}, v, &fv, 1);
+	bool together = false;
+	for (const auto& [node, features] : fv)
+		if (!features.empty() && features.front() == 0)
+			together = features.back() == 2;
+	EXPECT_TRUE(together);
+}
+
+TEST(Bow, VocabularySerialization)
+{
+	const auto f = makeFixture();
+	const auto back = roundTrip(f.voc);
+	ASSERT_TRUE(back);
+	EXPECT_EQ(back->words(), f.voc.words());
+	EXPECT_EQ(back->branching(), f.voc.branching());
+	EXPECT_EQ(back->levels(), f.voc.levels());
+	EXPECT_EQ(back->trainingImages(), f.voc.trainingImages());
+	for (WordId w = 0; w < f.voc.words(); ++w)
+		EXPECT_EQ(back->idf(w), f.voc.idf(w));
+	for (const auto& img : f.images)
+		for (const auto& d : img)
+			ASSERT_EQ(back->wordOf(d), f.voc.wordOf(d));
+	EXPECT_EQ(bytesOf(*back), bytesOf(f.voc));
+	expectUnknownVersionThrows(f.voc, "rasterslam::bow::Vocabulary");
+
+	// A truncated stream is refused.
+	auto bytes = bytesOf(f.voc);
+	bytes.resize(bytes.size() / 2);
+	mrpt::io::CMemoryStream cut;
+	cut.Write(bytes.data(), bytes.size());
+	cut.Seek(0);
+	auto arch = mrpt::serialization::archiveFrom(cut);
+	EXPECT_ANY_THROW(arch.ReadObject());
+
+	// An empty vocabulary goes through too.
+	const auto empty = roundTrip(Vocabulary{});
+	ASSERT_TRUE(empty);
+	EXPECT_TRUE(empty->empty());
+}
+
+TEST(Bow, DatabaseSerialization)
+{
+	const auto f = makeFixture();
+	Database db(2);
+	std::vector<BowVector> bows(f.images.size());
+	for (std::size_t i = 0; i < f.images.size(); ++i)
+	{
+		FeatureVector fv;
+		f.voc.transform(f.images[i], bows[i], &fv, 2);
+		db.add(bows[i], fv);
+	}
+	db.remove(4);
+	const auto back = roundTrip(db);
+	ASSERT_TRUE(back);
+	EXPECT_EQ(back->size(), db.size());
+	EXPECT_EQ(back->directIndexLevelsUp(), 2);
+	EXPECT_FALSE(back->contains(4));
+	for (std::size_t i = 0; i < f.images.size(); ++i)
+	{
+		const auto a = db.query(bows[i], 6), b = back->query(bows[i], 6);
+		ASSERT_EQ(a.size(), b.size());
+		for (std::size_t j = 0; j < a.size(); ++j)
+		{
+			EXPECT_EQ(a[j].entry, b[j].entry);
+			EXPECT_EQ(a[j].score, b[j].score);
+		}
+		if (i != 4)
+		{
+			EXPECT_EQ(back->featureVector(i), db.featureVector(i));
+			EXPECT_EQ(back->bowVector(i), db.bowVector(i));
+		}
+	}
+	Database copy = db;
+	EXPECT_EQ(back->add(bows[0]), copy.add(bows[0]));  // ids carry on, not reused
+	expectUnknownVersionThrows(db, "rasterslam::bow::Database");
+}
