@@ -18,6 +18,10 @@ constexpr int kExitError = 1, kExitUsage = 2;
 }
 
 int runCommand(int argc, char** argv);  // `rasterslam run ...`
-std::string findDefaultConfig();
+int relocalizeCommand(int argc, char** argv);  // `rasterslam relocalize ...`
+std::size_t parseIndexArg(const std::string& opt, const std::string& v);
+/** share/rasterslam/config/<name> from the environment, the install or the source tree. */
+std::string findConfig(const std::string& name = "default.yaml");
+inline std::string findDefaultConfig() { return findConfig("default.yaml"); }
 
 }  // namespace rasterslam::cli

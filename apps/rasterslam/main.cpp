@@ -17,6 +17,7 @@ const char* kUsage = R"(rasterslam: lifelong 3D-LiDAR SLAM on rasterized elevati
 usage:
   rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] [--last N]
                  [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--quiet | --verbose]
+  rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] [--first N] [--last N]
   rasterslam list-plugins
   rasterslam --help | --version
 
@@ -31,6 +32,12 @@ run options:
   --rate R        clock scale for --realtime (2 = twice as fast; default 1)
   --sensor LABEL  use only scans with this sensor label
   --save-images   write each scan's elevation image to DIR/images/NNNNNN.png
+  --map-out DIR   save what relocalization needs (keyframes, local-map images, the BOW
+                  database: DIR/map.rsmap, DIR/localmaps/*.png); needs a loop_detector
+
+relocalize: locate every scan of FILE in the map saved in DIR, with no pose prior; writes
+  DIR2/relocalization.txt (stamp, status, reason, local map, keyframe, score, inliers, pose
+  x y z qx qy qz qw in the map frame). Default config: share/rasterslam/config/slam.yaml.
   --quiet         only errors and the final summary;  --verbose: debug logging
 
 Plugins are searched in $RASTERSLAM_PLUGIN_PATH (colon-separated), <bin>/../lib/rasterslam/
@@ -82,5 +89,6 @@ int main(int argc, char** argv)
 	}
 	if (cmd == "list-plugins") return listPlugins();
 	if (cmd == "run") return cli::runCommand(argc - 1, argv + 1);
+	if (cmd == "relocalize") return cli::relocalizeCommand(argc - 1, argv + 1);
 	cli::usageError("unknown command '" + cmd + "'");
 }

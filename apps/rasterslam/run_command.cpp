@@ -99,7 +99,9 @@ class Progress
 };
 }  // namespace
 
-std::string findDefaultConfig()
+std::size_t parseIndexArg(const std::string& opt, const std::string& v) { return parseIndex(opt, v); }
+
+std::string findConfig(const std::string& name)
 {
 	std::vector<fs::path> dirs;
 	if (const char* env = std::getenv("RASTERSLAM_SHARE_DIR")) dirs.emplace_back(env);
@@ -109,15 +111,14 @@ std::string findDefaultConfig()
 	dirs.emplace_back(RASTERSLAM_SOURCE_SHARE_DIR);
 	dirs.emplace_back(RASTERSLAM_INSTALL_SHARE_DIR);
 	for (const auto& d : dirs)
-		if (fs::exists(d / "config" / "default.yaml"))
-			return (d / "config" / "default.yaml").lexically_normal().string();
+		if (fs::exists(d / "config" / name)) return (d / "config" / name).lexically_normal().string();
 	throw std::runtime_error(
-		"no default config found (share/rasterslam/config/default.yaml); give --config");
+		"no config found (share/rasterslam/config/" + name + "); give --config");
 }
 
 int runCommand(int argc, char** argv)
 {
-	std::string rawlog, outDir, configPath, sensor;
+	std::string rawlog, outDir, configPath, sensor, mapOut;
 	RunOptions opts;
 	bool quiet = false, verbose = false, saveImages = false;
 	for (int i = 1; i < argc; i++)
@@ -150,6 +151,8 @@ int runCommand(int argc, char** argv)
 			sensor = value();
 		else if (a == "--save-images")
 			saveImages = true;
+		else if (a == "--map-out")
+			mapOut = value();
 		else if (a == "--quiet")
 			quiet = true;
 		else if (a == "--verbose")
@@ -157,7 +160,7 @@ int runCommand(int argc, char** argv)
 		else if (a == "-h" || a == "--help")
 		{
 			std::cout << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
-						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--quiet|--verbose]\n"
+						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-out DIR] [--quiet|--verbose]\n"
 						 "(rasterslam --help explains every option)\n";
 			return 0;
 		}
@@ -180,6 +183,10 @@ int runCommand(int argc, char** argv)
 		if (configPath.empty()) configPath = findDefaultConfig();
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);
+		if (!mapOut.empty() && !engine->loopDetector())
+			throw std::runtime_error(
+				"--map-out needs a loop_detector in the config (it holds the map's database), e.g. "
+				"share/rasterslam/config/slam.yaml");
 		engine->setLogLevel(logLevel);
 		io::RawlogSourceOptions so;
 		so.sensorLabel = sensor;
@@ -288,6 +295,17 @@ int runCommand(int argc, char** argv)
 	if (!runError.empty()) summary["error"] = runError;
 	info["summary"] = summary;
 
+	if (!mapOut.empty() && !res.scans.empty())
+	{
+		try
+		{
+			engine->loopDetector()->saveMap(mapOut, res.graph);
+		}
+		catch (const std::exception& e)
+		{
+			if (runError.empty()) runError = std::string("saving the map: ") + e.what();
+		}
+	}
 	bool wrote = false;
 	try
 	{

@@ -4,6 +4,9 @@
 // it, and candidates are verified by matching against the keyframes of the local map.
 #include <mrpt/core/initializer.h>
 #include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/serialization/stl_serialization.h>
+#include <unistd.h>
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/bow/vocabulary.h>
 #include <rasterslam/core/plugin.h>
@@ -25,6 +28,9 @@ class BowLoopDetector : public LoopDetector
    public:
 	std::vector<LoopConstraint> detect(
 		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) override;
+	void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph) override;
+	void loadMap(const std::string& dir) override;
+	RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override;
@@ -38,6 +44,7 @@ class BowLoopDetector : public LoopDetector
 		cv::Mat desc;  //!< N x 32
 		std::vector<Eigen::Vector3f> pts;  //!< feature points, keyframe frame
 		std::vector<PointXYZI> cloud;  //!< non-ground points behind the image, keyframe frame
+		Keyframe::Ptr data;  //!< as the odometry gave it (saved with the map)
 	};
 	struct LocalMap
 	{
@@ -45,7 +52,12 @@ class BowLoopDetector : public LoopDetector
 		double newestStamp = 0;
 		std::vector<bow::Descriptor> desc;  //!< of its image, kept for online training
 		std::optional<bow::Database::EntryId> entry;
+		mrpt::img::CImage image;  //!< the rasterized local map
 	};
+	/** Best verified match of features (desc, pts) against the keyframes of a local map. */
+	features::RigidResult verify(
+		const cv::Mat& desc, const std::vector<Eigen::Vector3f>& pts, const LocalMap& lm,
+		uint32_t seed, std::size_t& bestKf) const;
 	void finishMap();
 	void trainOnline();
 	std::vector<bow::Descriptor> descriptorsOf(const cv::Mat& m) const;
@@ -203,6 +215,7 @@ void BowLoopDetector::finishMap()
 	cv::Mat desc;
 	orb_->extract(img.image.asCvMatRef(), kps, desc);
 	lm.desc = descriptorsOf(desc);
+	lm.image = img.image;
 	maps_.push_back(std::move(lm));
 	if (online_)
 	{
@@ -231,6 +244,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	kd.node = kf.node;
 	kd.stamp = kf.stamp;
 	kd.pose = kf.pose;
+	kd.data = kf.data;
 	const std::size_t n = kf.data->size();
 	kd.desc.create(static_cast<int>(n), 32, CV_8U);
 	for (std::size_t i = 0; i < n; i++)
@@ -265,26 +279,8 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			d.candidateMap = mi;
 			d.score = norm > 1e-6 ? r.score / norm : 0;
 			// Verify against every keyframe of the candidate map; keep the best.
-			features::RigidResult bestFit;
 			std::size_t bestKf = 0;
-			for (const auto k : lm.keyframes)
-			{
-				const auto& cand = kfs_[k];
-				const auto matches = features::matchMutual(kd.desc, cand.desc, match_);
-				std::vector<Eigen::Vector3f> p, qq;
-				for (const auto& m : matches)
-				{
-					p.push_back(kd.pts[m.a]);
-					qq.push_back(cand.pts[m.b]);
-				}
-				auto fit = features::ransacRigid(p, qq, ransac_, static_cast<uint32_t>(kf.node * 31 + k));
-				if (fit.inliers.size() > bestFit.inliers.size())
-				{
-					for (auto& i : fit.inliers) i = matches[i].a;
-					bestFit = std::move(fit);
-					bestKf = k;
-				}
-			}
+			const auto bestFit = verify(kd.desc, kd.pts, lm, static_cast<uint32_t>(kf.node * 31), bestKf);
 			d.inliers = bestFit.inliers.size();
 			d.verified = bestFit.ok;
 			if (!bestFit.inliers.empty())
@@ -329,4 +325,221 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	open_.push_back(kfs_.size() - 1);
 	if (static_cast<int>(open_.size()) >= keyframesPerMap_) finishMap();
 	return out;
+}
+
+features::RigidResult BowLoopDetector::verify(
+	const cv::Mat& desc, const std::vector<Eigen::Vector3f>& pts, const LocalMap& lm, uint32_t seed,
+	std::size_t& bestKf) const
+{
+	features::RigidResult best;
+	for (const auto k : lm.keyframes)
+	{
+		const auto& cand = kfs_[k];
+		const auto matches = features::matchMutual(desc, cand.desc, match_);
+		std::vector<Eigen::Vector3f> p, q;
+		for (const auto& m : matches)
+		{
+			p.push_back(pts[m.a]);
+			q.push_back(cand.pts[m.b]);
+		}
+		auto fit = features::ransacRigid(p, q, ransac_, seed + static_cast<uint32_t>(k));
+		if (fit.inliers.size() > best.inliers.size())
+		{
+			for (auto& i : fit.inliers) i = matches[i].a;
+			best = std::move(fit);
+			bestKf = k;
+		}
+	}
+	return best;
+}
+
+namespace
+{
+constexpr uint32_t kMapMagic = 0x504d5352;	// "RSMP"
+constexpr uint8_t kMapVersion = 0;
+std::string mapFile(const std::string& dir) { return (std::filesystem::path(dir) / "map.rsmap").string(); }
+}  // namespace
+
+void BowLoopDetector::saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph)
+{
+	finishMap();  // even a one-scan run leaves a usable map
+	if (maps_.empty()) throw std::runtime_error("no keyframe was made: there is no map to save");
+	if (!vocab_) trainOnline();
+	for (std::size_t i = 0; i < maps_.size(); i++)
+		if (!maps_[i].entry)
+		{
+			bow::BowVector b;
+			vocab_->transform(maps_[i].desc, b);
+			maps_[i].entry = db_.add(b);
+			entryMap_[*maps_[i].entry] = i;
+		}
+	// Keyframe poses as optimized.
+	for (auto& k : kfs_)
+		if (const auto it = graph.nodes.find(k.node); it != graph.nodes.end()) k.pose = it->second;
+
+	std::filesystem::create_directories(dir);
+	const auto path = mapFile(dir);
+	const auto tmp = path + ".tmp-" + std::to_string(::getpid());
+	{
+		mrpt::io::CFileGZOutputStream f;
+		if (!f.open(tmp, 1)) throw std::runtime_error("cannot write map '" + path + "'");
+		auto a = mrpt::serialization::archiveFrom(f);
+		a << kMapMagic << kMapVersion << *vocab_ << db_;
+		a << static_cast<uint64_t>(kfs_.size());
+		for (const auto& k : kfs_)
+		{
+			Keyframe kf = k.data ? *k.data : Keyframe();
+			kf.id = k.node;
+			kf.stamp = k.stamp;
+			kf.pose = k.pose;
+			a << kf;
+		}
+		a << static_cast<uint64_t>(maps_.size());
+		for (const auto& m : maps_)
+		{
+			std::vector<uint64_t> kidx(m.keyframes.begin(), m.keyframes.end());
+			a << kidx << m.newestStamp << static_cast<int64_t>(m.entry ? int64_t(*m.entry) : -1) << m.image;
+		}
+	}
+	std::filesystem::rename(tmp, path);
+	// The local-map images, for a look.
+	const auto imgDir = std::filesystem::path(dir) / "localmaps";
+	std::filesystem::create_directories(imgDir);
+	for (std::size_t i = 0; i < maps_.size(); i++)
+		maps_[i].image.saveToFile((imgDir / mrpt::format("%04zu.png", i)).string());
+	MRPT_LOG_INFO_FMT("map saved to %s: %zu keyframes, %zu local maps", path.c_str(), kfs_.size(), maps_.size());
+}
+
+void BowLoopDetector::loadMap(const std::string& dir)
+{
+	const auto path = mapFile(dir);
+	std::error_code ec;
+	if (!std::filesystem::exists(path, ec)) throw std::runtime_error("map '" + path + "' does not exist");
+	try
+	{
+		mrpt::io::CFileGZInputStream f(path);
+		auto a = mrpt::serialization::archiveFrom(f);
+		uint32_t magic = 0;
+		uint8_t version = 0;
+		a >> magic >> version;
+		if (magic != kMapMagic) throw std::runtime_error("not a rasterslam map");
+		if (version != kMapVersion) throw std::runtime_error("unknown map version " + std::to_string(version));
+		auto v = std::make_shared<bow::Vocabulary>();
+		a >> *v >> db_;
+		vocab_ = v;
+		uint64_t nk = 0;
+		a >> nk;
+		kfs_.clear();
+		for (uint64_t i = 0; i < nk; i++)
+		{
+			auto kf = std::make_shared<Keyframe>();
+			a >> *kf;
+			KeyframeData kd;
+			kd.node = kf->id;
+			kd.stamp = kf->stamp;
+			kd.pose = kf->pose;
+			kd.desc.create(static_cast<int>(kf->size()), 32, CV_8U);
+			for (std::size_t j = 0; j < kf->size(); j++)
+			{
+				std::memcpy(kd.desc.ptr<uint8_t>(static_cast<int>(j)), &kf->descriptors[32 * j], 32);
+				kd.pts.emplace_back(kf->xyz[3 * j], kf->xyz[3 * j + 1], kf->xyz[3 * j + 2]);
+			}
+			kd.data = kf;
+			kfs_.push_back(std::move(kd));
+		}
+		uint64_t nm = 0;
+		a >> nm;
+		maps_.clear();
+		entryMap_.clear();
+		for (uint64_t i = 0; i < nm; i++)
+		{
+			LocalMap m;
+			std::vector<uint64_t> kidx;
+			int64_t entry = -1;
+			a >> kidx >> m.newestStamp >> entry >> m.image;
+			for (const auto k : kidx)
+			{
+				if (k >= kfs_.size()) throw std::runtime_error("local map refers to a missing keyframe");
+				m.keyframes.push_back(static_cast<std::size_t>(k));
+			}
+			if (entry >= 0)
+			{
+				if (!db_.contains(static_cast<bow::Database::EntryId>(entry)))
+					throw std::runtime_error("local map refers to a missing database entry");
+				m.entry = static_cast<bow::Database::EntryId>(entry);
+				entryMap_[*m.entry] = maps_.size();
+			}
+			maps_.push_back(std::move(m));
+		}
+	}
+	catch (const std::exception& e)
+	{
+		std::string what = e.what();
+		if (const auto pos = what.find("Message:"); pos != std::string::npos)
+			what = what.substr(pos + 9, what.find('\n', pos) - pos - 9);
+		throw std::runtime_error("cannot read map '" + path + "': " + what);
+	}
+	open_.clear();
+	prevBow_.reset();
+	online_ = false;  // the map's vocabulary stays
+}
+
+RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterFrame& raster)
+{
+	RelocalizationResult res;
+	if (!vocab_ || db_.size() == 0)
+	{
+		res.reason = "empty-map";
+		return res;
+	}
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat all;
+	orb_->extract(raster.image.asCvMatRef(), kps, all);
+	cv::Mat desc(0, 32, CV_8U);
+	std::vector<Eigen::Vector3f> pts;
+	for (int i = 0; i < static_cast<int>(kps.size()); i++)
+	{
+		const int32_t idx = raster::pointAtPixel(raster, kps[i].pt.x, kps[i].pt.y, 1);
+		if (idx < 0) continue;
+		const auto& q = scan.points[static_cast<std::size_t>(idx)];
+		pts.emplace_back(q.x, q.y, q.z);
+		desc.push_back(all.row(i));
+	}
+	if (pts.size() < static_cast<std::size_t>(ransac_.minInliers))
+	{
+		res.reason = "features";
+		return res;
+	}
+	bow::BowVector q;
+	vocab_->transform(descriptorsOf(desc), q);
+	const auto results = db_.query(q, static_cast<std::size_t>(maxCandidates_ + 1));
+	if (results.empty())
+	{
+		res.reason = "candidates";
+		return res;
+	}
+	res.reason = "inliers";
+	for (const auto& r : results)
+	{
+		const auto mi = entryMap_.at(r.entry);
+		std::size_t kfIdx = 0;
+		const auto fit = verify(desc, pts, maps_[mi], static_cast<uint32_t>(scan.index * 17 + 3), kfIdx);
+		if (fit.ok && fit.inliers.size() > res.inliers)
+		{
+			res.found = true;
+			res.reason = "ok";
+			res.localMap = mi;
+			res.keyframe = kfs_[kfIdx].node;
+			res.keyframeStamp = kfs_[kfIdx].stamp;
+			res.score = r.score;
+			res.inliers = fit.inliers.size();
+			res.pose = kfs_[kfIdx].pose + toPose(fit.T);
+		}
+		else if (!res.found)
+		{
+			res.score = std::max(res.score, r.score);
+			res.inliers = std::max(res.inliers, fit.inliers.size());
+		}
+	}
+	return res;
 }

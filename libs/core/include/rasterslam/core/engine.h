@@ -79,6 +79,9 @@ class Engine : public mrpt::system::COutputLogger
 	/** Sets the logging level of the engine and of every plugin it created. */
 	void setLogLevel(mrpt::system::VerbosityLevel level);
 
+	Rasterizer::Ptr rasterizer() const { return rasterizer_; }
+	LoopDetector::Ptr loopDetector() const { return loopDetector_; }
+
 	/** The whole configuration with every parameter in force (defaults filled in). */
 	const mrpt::containers::yaml& configInForce() const { return inForce_; }
 

@@ -141,6 +141,19 @@ struct LoopDecision
 	mrpt::poses::CPose3D T_candidate_query;
 };
 
+/** Where a scan lies in a saved map, found with no pose prior. */
+struct RelocalizationResult
+{
+	bool found = false;
+	std::string reason;  //!< one word: ok, features, candidates, inliers
+	uint64_t localMap = 0;
+	uint64_t keyframe = 0;  //!< node id of the matched keyframe
+	double keyframeStamp = -1;
+	double score = 0;
+	std::size_t inliers = 0;
+	mrpt::poses::CPose3D pose;  //!< of the scan, in the map frame
+};
+
 class LoopDetector : public Plugin
 {
 	DEFINE_VIRTUAL_MRPT_OBJECT(LoopDetector)
@@ -148,6 +161,14 @@ class LoopDetector : public Plugin
 	std::string role() const override { return "loop_detector"; }
 	virtual std::vector<LoopConstraint> detect(
 		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) = 0;
+
+	/** Saves what relocalization needs into `dir` (the open local map is finished first);
+	 *  keyframe poses are taken from `graph` (optimized). Not every detector can. */
+	virtual void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph);
+	/** Loads a map written by saveMap(); throws naming the file on damage. */
+	virtual void loadMap(const std::string& dir);
+	/** Locates a scan in the loaded (or built) map with no pose prior. */
+	virtual RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster);
 	/** Every candidate examined so far, in order. */
 	const std::vector<LoopDecision>& decisions() const { return decisions_; }
 

@@ -1,0 +1,133 @@
+// Saving a map and relocalizing in it with no pose prior: a simulated revisit, and the real
+// KITTI-05 pair (frames 540 and 1319, 8.9 m and 28 deg apart) with the 540 local map among
+// the KITTI-00 distractors.
+#include <rasterslam/io/kitti.h>
+#include <rasterslam/io/rawlog_writer.h>
+#include <rasterslam/io/trajectory_io.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "test_support.h"
+
+using namespace rasterslam;
+namespace fs = std::filesystem;
+
+namespace
+{
+struct RelocLine
+{
+	double stamp = 0;
+	bool found = false;
+	std::string reason;
+	double kfStamp = 0;
+	std::size_t inliers = 0;
+	Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+
+std::vector<RelocLine> readReloc(const fs::path& p)
+{
+	std::vector<RelocLine> out;
+	std::ifstream f(p);
+	std::string line;
+	while (std::getline(f, line))
+	{
+		if (line.empty() || line[0] == '#') continue;
+		std::istringstream ss(line);
+		RelocLine r;
+		std::string status;
+		unsigned long long lm, kf;
+		double score, x, y, z, qx, qy, qz, qw;
+		ss >> r.stamp >> status >> r.reason >> lm >> kf >> r.kfStamp >> score >> r.inliers >> x >> y >> z >> qx >> qy >> qz >> qw;
+		EXPECT_FALSE(ss.fail()) << line;
+		r.found = status == "found";
+		r.pose.linear() = Eigen::Quaterniond(qw, qx, qy, qz).toRotationMatrix();
+		r.pose.translation() = Eigen::Vector3d(x, y, z);
+		out.push_back(r);
+	}
+	return out;
+}
+
+Eigen::Isometry3d poseAt(const io::Trajectory& t, double stamp)
+{
+	for (const auto& p : t)
+		if (std::abs(p.stamp - stamp) < 1e-4) return p.pose;
+	ADD_FAILURE() << "no pose at " << stamp;
+	return Eigen::Isometry3d::Identity();
+}
+}  // namespace
+
+TEST(Relocalization, Kitti05RevisitAmongDistractors)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto D00 = test::sharedData("kitti00-0000-0100"), D05 = test::sharedData("kitti05-revisit-0540-1319");
+	const auto dir = test::tempDir("reloc");
+	// Map input: KITTI 00 scans 0-100, then KITTI 05 frame 540 (a jump: tracking restarts).
+	const auto mapRawlog = (dir / "map.rawlog").string(), query = (dir / "query.rawlog").string();
+	{
+		io::RawlogWriter w(mapRawlog, 1);
+		const auto bins = io::listKittiBins(D00 + "/velodyne");
+		const auto times = io::loadKittiTimes(D00 + "/times.txt");
+		for (std::size_t i = 0; i < bins.size(); i++)
+		{
+			Scan s;
+			s.stamp = 100 + times[i];
+			s.points = io::loadKittiBin(bins[i]);
+			w.writeScan(s);
+		}
+		Scan s;
+		s.stamp = 200;
+		s.points = io::loadKittiBin(D05 + "/000540.bin");
+		w.writeScan(s);
+		w.close();
+		io::RawlogWriter q(query, 1);
+		Scan s2;
+		s2.stamp = 300;
+		s2.points = io::loadKittiBin(D05 + "/001319.bin");
+		q.writeScan(s2);
+		q.close();
+	}
+	const auto slam = test::sourcePath("share/rasterslam/config/slam.yaml");
+	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + mapRawlog + " --config " + slam +
+							  " --quiet --out " + (dir / "run").string() + " --map-out " + (dir / "map").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	ASSERT_TRUE(fs::exists(dir / "map" / "map.rsmap"));
+	EXPECT_TRUE(fs::exists(dir / "map" / "localmaps" / "0000.png"));
+
+	r = test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "map").string() + " --rawlog " + query +
+						 " --out " + (dir / "reloc").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const auto lines = readReloc(dir / "reloc" / "relocalization.txt");
+	ASSERT_EQ(lines.size(), 1u);
+	ASSERT_TRUE(lines[0].found) << lines[0].reason;
+	EXPECT_NEAR(lines[0].kfStamp, 200, 1e-6);  // matched the 540 keyframe, not a distractor
+
+	// Ground truth (data README, official poses): pose of 1319 in the frame of 540.
+	Eigen::Matrix4d M;
+	M << 0.883776, -0.466986, -0.0294015, 7.34227, 0.467908, 0.882265, 0.051687, 4.89425, 0.00180279,
+		-0.0594369, 0.99823, 0.0543196, 0, 0, 0, 1;
+	const Eigen::Isometry3d truth(M);
+	const auto est = io::loadTrajectory((dir / "run" / "trajectory.tum").string());
+	const Eigen::Isometry3d rel = poseAt(est, 200).inverse() * lines[0].pose;
+	const double dt = (rel.translation() - truth.translation()).norm();
+	const double da = Eigen::AngleAxisd(rel.linear().transpose() * truth.linear()).angle() * 180 / M_PI;
+	std::cout << "KITTI-05 1319 in 540: " << dt << " m, " << da << " deg, " << lines[0].inliers << " inliers\n";
+	EXPECT_LT(dt, 0.3);
+	EXPECT_LT(da, 1.0);
+}
+
+TEST(Relocalization, BadMapIsReported)
+{
+	const auto dir = test::tempDir("reloc");
+	fs::create_directories(dir / "map");
+	std::ofstream(dir / "map" / "map.rsmap") << "not a map";
+	const auto r = test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "map").string() +
+									" --rawlog x.rawlog --out " + (dir / "o").string());
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("cannot read map '" + (dir / "map" / "map.rsmap").string() + "'"), std::string::npos) << r.output;
+	const auto r2 = test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "none").string() +
+									 " --rawlog x.rawlog --out " + (dir / "o").string());
+	EXPECT_EQ(r2.exitCode, 1);
+	EXPECT_NE(r2.output.find("does not exist"), std::string::npos) << r2.output;
+}
