@@ -16,7 +16,8 @@ const char* kUsage = R"(rasterslam: lifelong 3D-LiDAR SLAM on rasterized elevati
 
 usage:
   rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] [--last N]
-                 [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--quiet | --verbose]
+                 [--realtime [--rate R]] [--sensor LABEL] [--save-images]
+                 [--map-in DIR] [--map-out DIR] [--quiet | --verbose]
   rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] [--first N] [--last N]
   rasterslam list-plugins
   rasterslam --help | --version
@@ -32,6 +33,8 @@ run options:
   --rate R        clock scale for --realtime (2 = twice as fast; default 1)
   --sensor LABEL  use only scans with this sensor label
   --save-images   write each scan's elevation image to DIR/images/NNNNNN.png
+  --map-in DIR    start in a map saved by --map-out: the first scan is relocalized in it
+                  (poses are then in that map's frame) and mapping goes on
   --map-out DIR   save what relocalization needs (keyframes, local-map images, the BOW
                   database: DIR/map.rsmap, DIR/localmaps/*.png); needs a loop_detector
 

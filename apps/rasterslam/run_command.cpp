@@ -118,7 +118,7 @@ std::string findConfig(const std::string& name)
 
 int runCommand(int argc, char** argv)
 {
-	std::string rawlog, outDir, configPath, sensor, mapOut;
+	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
 	RunOptions opts;
 	bool quiet = false, verbose = false, saveImages = false;
 	for (int i = 1; i < argc; i++)
@@ -153,6 +153,8 @@ int runCommand(int argc, char** argv)
 			saveImages = true;
 		else if (a == "--map-out")
 			mapOut = value();
+		else if (a == "--map-in")
+			mapIn = value();
 		else if (a == "--quiet")
 			quiet = true;
 		else if (a == "--verbose")
@@ -160,7 +162,7 @@ int runCommand(int argc, char** argv)
 		else if (a == "-h" || a == "--help")
 		{
 			std::cout << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
-						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-out DIR] [--quiet|--verbose]\n"
+						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in DIR] [--map-out DIR] [--quiet|--verbose]\n"
 						 "(rasterslam --help explains every option)\n";
 			return 0;
 		}
@@ -183,6 +185,13 @@ int runCommand(int argc, char** argv)
 		if (configPath.empty()) configPath = findDefaultConfig();
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);
+		if (!mapIn.empty())
+		{
+			if (!engine->loopDetector() || !engine->rasterizer())
+				throw std::runtime_error("--map-in needs a rasterizer and a loop_detector in the config");
+			engine->loopDetector()->loadMap(mapIn);
+			opts.relocalizeFirstScan = true;
+		}
 		if (!mapOut.empty() && !engine->loopDetector())
 			throw std::runtime_error(
 				"--map-out needs a loop_detector in the config (it holds the map's database), e.g. "
@@ -266,6 +275,8 @@ int runCommand(int argc, char** argv)
 	counts["late"] = static_cast<uint64_t>(res.late);
 	counts["loop_edges"] = static_cast<uint64_t>(res.loopEdges);
 	counts["rawlog_odometry_edges"] = static_cast<uint64_t>(res.odometryEdges);
+	counts["relocalized"] = static_cast<uint64_t>(res.relocalized);
+	counts["relocalization_failures"] = static_cast<uint64_t>(res.relocalizationFailures);
 	counts["skipped_bad_scans"] = static_cast<uint64_t>(res.skippedBadScans);
 	info["counts"] = counts;
 	yaml summary = yaml::Map();

@@ -108,6 +108,7 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		minPoints_ = p.getInt("min_points", 100);
 		optimizeAtEnd_ = p.getBool("optimize_at_end", true);
 		useRawlogOdometry_ = p.getBool("use_rawlog_odometry", false);
+		relocalizeOnLoss_ = p.getBool("relocalize_on_loss", true);
 		rawlogOdoSigma_m_ = p.getDouble("rawlog_odometry_sigma_m", rawlogOdoSigma_m_);
 		rawlogOdoSigma_deg_ = p.getDouble("rawlog_odometry_sigma_deg", rawlogOdoSigma_deg_);
 		if (!(rawlogOdoSigma_m_ > 0) || !(rawlogOdoSigma_deg_ > 0))
@@ -155,6 +156,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	// The input's own odometry composed since the last keyframe (paper: visual odometry
 	// factors fused into the graph; here any odometry the rawlog carries).
 	std::optional<mrpt::poses::CPose3DPDFGaussian> odoSinceKf;
+	bool anchored = !opts.relocalizeFirstScan;  // false until located in a --map-in map
 
 	for (;;)
 	{
@@ -236,11 +238,75 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		else
 			currPose = currPose + odo.T_prev_curr;
 		++stepsSinceKf;
-		if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
+
+		// Relocalization (paper, "Re-localization"): at the start of a session with a prior
+		// map, and whenever tracking is lost, the scan queries the loop detector's database
+		// with no pose prior. Found: the pose comes from the map (and, if the matched keyframe
+		// is in this run's graph, a constraint to it). Not found: tracking goes on from the
+		// motion prior, linked to the past only by a weak edge: a new, disconnected part that
+		// a later loop closure can join.
+		std::optional<LoopConstraint> relocEdge;
+		if (loopDetector_ && rasterPtr && !anchored && (!haveKf || odo.keyframe))
 		{
-			if (!odoSinceKf) odoSinceKf = *scan->odometryIncrement;
+			// A session in a prior map: try every keyframe until one is found in it, then
+			// move everything tracked so far into the map's frame.
+			const auto t0 = Clock::now();
+			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr);
+			rec.ms.loop += msSince(t0);
+			if (rl.found)
+			{
+				const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
+				for (auto& [id, p] : graph.nodes) p = C + p;
+				lastKfPose = C + lastKfPose;
+				currPose = rl.pose;
+				anchored = true;
+				++res.relocalized;
+				MRPT_LOG_INFO_STREAM(
+					"scan " << scan->index << ": located in the prior map (local map " << rl.localMap << ", "
+							<< rl.inliers << " inliers)");
+			}
 			else
-				*odoSinceKf += *scan->odometryIncrement;
+			{
+				++res.relocalizationFailures;
+				MRPT_LOG_THROTTLE_WARN_STREAM(
+					1.0, "scan " << scan->index << ": not located in the prior map yet (" << rl.reason << ")");
+			}
+		}
+		else if (
+			loopDetector_ && rasterPtr && haveKf && odo.status == TrackingStatus::Lost && relocalizeOnLoss_)
+		{
+			const auto t0 = Clock::now();
+			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr);
+			rec.ms.loop += msSince(t0);
+			const auto it = graph.nodes.find(rl.keyframe);
+			if (rl.found)
+			{
+				++res.relocalized;
+				MRPT_LOG_INFO_STREAM(
+					"scan " << scan->index << ": relocalized in local map " << rl.localMap << " (keyframe "
+							<< rl.keyframe << ", " << rl.inliers << " inliers)");
+				if (it != graph.nodes.end())
+				{
+					// The map's keyframe pose may predate optimization: the relative pose to
+					// it is what counts.
+					LoopConstraint c;
+					c.from = rl.keyframe;
+					c.T_from_to = rl.pose - rl.keyframePose;
+					c.information.setIdentity();
+					c.information *= 100;
+					relocEdge = c;
+					currPose = it->second + c.T_from_to;
+				}
+				else
+					currPose = rl.pose;  // a keyframe of the prior map: already its frame
+			}
+			else
+			{
+				++res.relocalizationFailures;
+				MRPT_LOG_THROTTLE_WARN_STREAM(
+					1.0, "scan " << scan->index << ": relocalization failed (" << rl.reason
+								 << "): a new, disconnected part of the map starts here");
+			}
 		}
 
 		if (!haveKf || odo.keyframe)
@@ -276,6 +342,14 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				}
 			}
 			odoSinceKf.reset();
+			if (relocEdge)
+			{
+				mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+				e.mean = relocEdge->T_from_to;
+				e.cov_inv = relocEdge->information;
+				graph.insertEdge(relocEdge->from, id, e);
+				++res.loopEdges;
+			}
 			lastKf = id;
 			lastKfPose = currPose;
 			haveKf = true;
@@ -302,6 +376,12 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				const auto t0 = Clock::now();
 				for (const auto& lc : loopDetector_->detect(kf, *scan, rasterPtr))
 				{
+					if (!graph.nodes.count(lc.from) || !graph.nodes.count(lc.to))
+					{
+						// A keyframe of a map loaded with --map-in: not a node of this graph.
+						++res.loopsToPriorMap;
+						continue;
+					}
 					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
 					e.mean = lc.T_from_to;
 					e.cov_inv = lc.information;

@@ -357,6 +357,7 @@ namespace
 {
 constexpr uint32_t kMapMagic = 0x504d5352;	// "RSMP"
 constexpr uint8_t kMapVersion = 0;
+constexpr uint64_t kPriorMapNodeOffset = uint64_t(1) << 40;
 std::string mapFile(const std::string& dir) { return (std::filesystem::path(dir) / "map.rsmap").string(); }
 }  // namespace
 
@@ -389,7 +390,7 @@ void BowLoopDetector::saveMap(const std::string& dir, const mrpt::graphs::CNetwo
 		for (const auto& k : kfs_)
 		{
 			Keyframe kf = k.data ? *k.data : Keyframe();
-			kf.id = k.node;
+			kf.id = k.node >= kPriorMapNodeOffset ? k.node - kPriorMapNodeOffset : k.node;
 			kf.stamp = k.stamp;
 			kf.pose = k.pose;
 			a << kf;
@@ -435,7 +436,9 @@ void BowLoopDetector::loadMap(const std::string& dir)
 			auto kf = std::make_shared<Keyframe>();
 			a >> *kf;
 			KeyframeData kd;
-			kd.node = kf->id;
+			// Nodes of an earlier session are not nodes of this run's graph: give them ids
+			// that cannot collide with the new ones.
+			kd.node = kPriorMapNodeOffset + kf->id;
 			kd.stamp = kf->stamp;
 			kd.pose = kf->pose;
 			kd.desc.create(static_cast<int>(kf->size()), 32, CV_8U);
@@ -533,6 +536,7 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 			res.keyframeStamp = kfs_[kfIdx].stamp;
 			res.score = r.score;
 			res.inliers = fit.inliers.size();
+			res.keyframePose = kfs_[kfIdx].pose;
 			res.pose = kfs_[kfIdx].pose + toPose(fit.T);
 		}
 		else if (!res.found)

@@ -42,6 +42,9 @@ struct RunOptions
 	/** Play scans at their time stamps (scaled by `rate`) instead of as fast as possible. */
 	bool realtime = false;
 	double rate = 1.0;
+	/** Locate the run in the loop detector's loaded map (--map-in): every keyframe is
+	 *  relocalized until one is found, then all poses move into the map's frame. */
+	bool relocalizeFirstScan = false;
 	/** Called after every processed scan. */
 	std::function<void(const ScanRecord&, double progress)> onScan;
 	/** Called with every rasterized image (e.g. to save it), when a rasterizer is set. */
@@ -56,6 +59,8 @@ struct RunResult
 	mrpt::graphs::CNetworkOfPoses3DInf graph;
 	std::size_t keyframes = 0, lost = 0, late = 0, loopEdges = 0, skippedBadScans = 0;
 	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
+	std::size_t relocalized = 0, relocalizationFailures = 0;
+	std::size_t loopsToPriorMap = 0;  //!< loops found to a --map-in map (not graph edges yet)
 	OptimizerResult optimizer;
 	/** What the loop detector examined (empty without one). */
 	std::vector<LoopDecision> loopDecisions;
@@ -102,6 +107,7 @@ class Engine : public mrpt::system::COutputLogger
 	int minPoints_ = 100;
 	bool optimizeAtEnd_ = true;
 	bool useRawlogOdometry_ = false;
+	bool relocalizeOnLoss_ = true;
 	double rawlogOdoSigma_m_ = 0.05, rawlogOdoSigma_deg_ = 0.5;
 };
 

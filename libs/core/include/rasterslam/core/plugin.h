@@ -152,6 +152,7 @@ struct RelocalizationResult
 	double score = 0;
 	std::size_t inliers = 0;
 	mrpt::poses::CPose3D pose;  //!< of the scan, in the map frame
+	mrpt::poses::CPose3D keyframePose;  //!< of the matched keyframe, in the map frame
 };
 
 class LoopDetector : public Plugin
