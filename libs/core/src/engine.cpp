@@ -238,6 +238,12 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		else
 			currPose = currPose + odo.T_prev_curr;
 		++stepsSinceKf;
+		if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
+		{
+			if (!odoSinceKf) odoSinceKf = *scan->odometryIncrement;
+			else
+				*odoSinceKf += *scan->odometryIncrement;
+		}
 
 		// Relocalization (paper, "Re-localization"): at the start of a session with a prior
 		// map, and whenever tracking is lost, the scan queries the loop detector's database
