@@ -59,6 +59,17 @@ class BowLoopDetector : public LoopDetector
 		const cv::Mat& desc, const std::vector<Eigen::Vector3f>& pts, const LocalMap& lm,
 		uint32_t seed, std::size_t& bestKf) const;
 	void finishMap();
+	/** The paper's two baselines: candidates are the keyframes, or the local maps, near the
+	 *  current pose estimate; each is verified by feature matching. */
+	void searchByDistance(const KeyframeData& kd, std::vector<LoopConstraint>& out);
+	enum class Search
+	{
+		Bow,
+		Keyframes,
+		LocalMaps
+	};
+	Search search_ = Search::Bow;
+	double searchRadius_m_ = 15.0;
 	void trainOnline();
 	std::vector<bow::Descriptor> descriptorsOf(const cv::Mat& m) const;
 
@@ -111,6 +122,9 @@ mrpt::poses::CPose3D toPose(const Eigen::Isometry3d& T)
 void BowLoopDetector::initializeImpl(ParamReader& p)
 {
 	vocabularyFile_ = p.getPath("vocabulary_file", "");
+	const auto search = p.getChoice("search", "bow", {"bow", "keyframes", "localmaps"});
+	search_ = search == "bow" ? Search::Bow : (search == "keyframes" ? Search::Keyframes : Search::LocalMaps);
+	searchRadius_m_ = p.getDouble("search_radius_m", searchRadius_m_);
 	onlineMinMaps_ = p.getInt("online_min_maps", onlineMinMaps_);
 	onlineBranching_ = p.getInt("online_branching", onlineBranching_);
 	onlineLevels_ = p.getInt("online_levels", onlineLevels_);
@@ -240,6 +254,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		throw std::runtime_error(
 			"rasterslam::BowLoopDetector needs keyframes with features: use an odometry that provides them (e.g. rasterslam::OrbOdometry)");
 	std::vector<LoopConstraint> out;
+	const std::size_t decisionsBefore = decisions_.size();
 	KeyframeData kd;
 	kd.node = kf.node;
 	kd.stamp = kf.stamp;
@@ -256,8 +271,12 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		for (const auto idx : raster->pixelToPoint)
 			if (idx >= 0) kd.cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
 
+	if (search_ != Search::Bow)
+	{
+		searchByDistance(kd, out);
+	}
 	// Query the database with this keyframe's words.
-	if (vocab_ && db_.size() > 0 && n > 0)
+	else if (vocab_ && db_.size() > 0 && n > 0)
 	{
 		bow::BowVector q;
 		vocab_->transform(descriptorsOf(kd.desc), q);
@@ -321,6 +340,14 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		prevBow_ = q;
 	}
 
+	// Every query leaves a line, so that recall counts the keyframes that found nothing.
+	if (decisions_.size() == decisionsBefore)
+	{
+		LoopDecision none;
+		none.queryStamp = kf.stamp;
+		none.reason = "none";
+		decisions_.push_back(none);
+	}
 	kfs_.push_back(std::move(kd));
 	open_.push_back(kfs_.size() - 1);
 	if (static_cast<int>(open_.size()) >= keyframesPerMap_) finishMap();
@@ -546,4 +573,75 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 		}
 	}
 	return res;
+}
+
+void BowLoopDetector::searchByDistance(const KeyframeData& kd, std::vector<LoopConstraint>& out)
+{
+	// Candidate sets: single keyframes, or the keyframes of a local map (its centre is its
+	// keyframes' mean position), older than the exclusion window and within the radius.
+	std::vector<std::pair<double, LocalMap>> cands;
+	if (search_ == Search::Keyframes)
+	{
+		for (std::size_t k = 0; k < kfs_.size(); k++)
+		{
+			if (kfs_[k].stamp > kd.stamp - excludeRecent_s_) continue;
+			const double d = (kfs_[k].pose.translation() - kd.pose.translation()).norm();
+			if (d > searchRadius_m_) continue;
+			LocalMap one;
+			one.keyframes = {k};
+			one.newestStamp = kfs_[k].stamp;
+			cands.emplace_back(d, one);
+		}
+	}
+	else
+	{
+		for (const auto& lm : maps_)
+		{
+			if (lm.newestStamp > kd.stamp - excludeRecent_s_) continue;
+			Eigen::Vector3d c = Eigen::Vector3d::Zero();
+			for (const auto k : lm.keyframes) c += Eigen::Vector3d(kfs_[k].pose.x(), kfs_[k].pose.y(), kfs_[k].pose.z());
+			c /= static_cast<double>(lm.keyframes.size());
+			const double d = (c - Eigen::Vector3d(kd.pose.x(), kd.pose.y(), kd.pose.z())).norm();
+			if (d <= searchRadius_m_) cands.emplace_back(d, lm);
+		}
+	}
+	std::sort(cands.begin(), cands.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+	std::optional<LoopConstraint> best;
+	std::size_t bestDecision = 0;
+	for (const auto& [dist, lm] : cands)
+	{
+		LoopDecision d;
+		d.queryStamp = kd.stamp;
+		std::size_t bestKf = 0;
+		const auto fit = verify(kd.desc, kd.pts, lm, static_cast<uint32_t>(kd.node * 31), bestKf);
+		d.inliers = fit.inliers.size();
+		d.verified = fit.ok;
+		// No BOW score here: the share of features that are inliers ranks the candidates.
+		d.score = kd.pts.empty() ? 0 : static_cast<double>(d.inliers) / static_cast<double>(kd.pts.size());
+		if (!fit.inliers.empty())
+		{
+			d.candidateStamp = kfs_[bestKf].stamp;
+			d.T_candidate_query = toPose(fit.T);
+		}
+		d.reason = d.verified ? "ok" : "inliers";
+		if (d.verified && (!best || d.inliers > best->inliers))
+		{
+			LoopConstraint c;
+			c.from = kfs_[bestKf].node;
+			c.to = kd.node;
+			c.T_from_to = d.T_candidate_query;
+			c.information = mrpt::math::CMatrixDouble66(
+				features::pointToPointInformation(kd.pts, fit.inliers, pointSigma_m_));
+			c.score = d.score;
+			c.inliers = d.inliers;
+			best = c;
+			bestDecision = decisions_.size();
+		}
+		decisions_.push_back(d);
+	}
+	if (best)
+	{
+		decisions_[bestDecision].accepted = true;
+		out.push_back(*best);
+	}
 }
