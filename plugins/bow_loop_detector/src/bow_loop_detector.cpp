@@ -80,7 +80,7 @@ class BowLoopDetector : public LoopDetector
 	raster::RasterParams mapRaster_;
 	features::OrbParams mapOrb_;
 	double excludeRecent_s_ = 30, minScore_ = 0.3;
-	int maxCandidates_ = 2, maxResults_ = 20;
+	int maxCandidates_ = 5, maxResults_ = 20;
 	features::MatchParams match_;
 	features::RansacParams ransac_;
 	double pointSigma_m_ = 0.2;
