@@ -6,6 +6,7 @@ JOBS ?= $(shell nproc)
 DEMO_SCENARIO ?= rawlogs/town-loop.yaml
 DEMO_RAWLOG ?= $(BUILD)/rawlogs/town-loop.rawlog
 DEMO_OUT ?= out/demo
+DEMO_CONFIG ?= share/rasterslam/config/slam.yaml
 
 .PHONY: all deps configure build demo test clean
 
@@ -26,9 +27,10 @@ $(DEMO_RAWLOG): $(DEMO_SCENARIO) | build
 
 demo: build
 	@$(MAKE) --no-print-directory $(DEMO_RAWLOG)
-	$(BUILD)/bin/rasterslam run --rawlog $(DEMO_RAWLOG) --out $(DEMO_OUT)
+	$(BUILD)/bin/rasterslam run --rawlog $(DEMO_RAWLOG) --config $(DEMO_CONFIG) --out $(DEMO_OUT) --map-out $(DEMO_OUT)/map
 	$(BUILD)/bin/rasterslam-eval traj --gt $(DEMO_OUT)/groundtruth.tum --est $(DEMO_OUT)/trajectory.tum
-	@echo "demo: outputs in $(DEMO_OUT)/ (trajectory.tum, trajectory.kitti, timings.csv, run.yaml)"
+	$(BUILD)/bin/rasterslam-eval loops --loops $(DEMO_OUT)/loops.txt --gt $(DEMO_OUT)/groundtruth.tum --plot $(DEMO_OUT)/loops-pr.png
+	@echo "demo: outputs in $(DEMO_OUT)/ (trajectory.tum, trajectory.kitti, loops.txt, timings.csv, run.yaml, map/)"
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
