@@ -223,6 +223,13 @@ void BowLoopDetector::finishMap()
 			pts.push_back({float(x), float(y), float(z), q.intensity});
 		}
 	}
+	// The clouds were only needed for this image: free them (memory must not grow with the
+	// points of every keyframe ever made).
+	for (const auto k : lm.keyframes)
+	{
+		kfs_[k].cloud.clear();
+		kfs_[k].cloud.shrink_to_fit();
+	}
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
 	std::vector<cv::KeyPoint> kps;
