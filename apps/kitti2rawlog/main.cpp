@@ -5,6 +5,7 @@
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/registerAllClasses.h>
+#include <rasterslam/core/pose_conversions.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/io/trajectory_io.h>
@@ -209,13 +210,7 @@ int main(int argc, char** argv)
 			scan.index = i;
 			scan.stamp = times.empty() ? 0.1 * static_cast<double>(i) : times[i];
 			scan.sensorLabel = "LIDAR";
-			if (!gt.empty())
-			{
-				mrpt::math::CMatrixDouble44 M;
-				for (int r = 0; r < 4; r++)
-					for (int c = 0; c < 4; c++) M(r, c) = gt[i].pose.matrix()(r, c);
-				scan.groundTruth = mrpt::poses::CPose3D::FromHomogeneousMatrix(M);
-			}
+			if (!gt.empty()) scan.groundTruth = toPose(gt[i].pose);
 			if (!external)
 			{
 				scan.points = io::loadKittiBin(bins[i]);

@@ -12,15 +12,6 @@ namespace fs = std::filesystem;
 
 namespace rasterslam::io
 {
-Eigen::Isometry3d toIsometry(const mrpt::poses::CPose3D& p)
-{
-	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-	const auto M = p.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
-	for (int r = 0; r < 4; r++)
-		for (int c = 0; c < 4; c++) T.matrix()(r, c) = M(r, c);
-	return T;
-}
-
 void ensureWritableDir(const std::string& dir)
 {
 	std::error_code ec;

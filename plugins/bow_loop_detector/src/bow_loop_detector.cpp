@@ -10,6 +10,7 @@
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/bow/vocabulary.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/core/pose_conversions.h>
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/rigid_ransac.h>
@@ -59,6 +60,12 @@ class BowLoopDetector : public LoopDetector
 		const cv::Mat& desc, const std::vector<Eigen::Vector3f>& pts, const LocalMap& lm,
 		uint32_t seed, std::size_t& bestKf) const;
 	void finishMap();
+	/** Logs a candidate decision; a verified, acceptable one that beats the best so far
+	 *  becomes the keyframe's loop constraint. */
+	void considerLoop(
+		const LoopDecision& d, const features::RigidResult& fit, std::size_t candidateKf,
+		const KeyframeData& query, bool acceptable, std::optional<LoopConstraint>& best,
+		std::size_t& bestDecision);
 	/** The paper's two baselines: candidates are the keyframes, or the local maps, near the
 	 *  current pose estimate; each is verified by feature matching. */
 	void searchByDistance(const KeyframeData& kd, std::vector<LoopConstraint>& out);
@@ -107,17 +114,6 @@ MRPT_INITIALIZER(register_rasterslam_plugin_bow_loop_detector)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::BowLoopDetector));
 }
-
-namespace
-{
-mrpt::poses::CPose3D toPose(const Eigen::Isometry3d& T)
-{
-	mrpt::math::CMatrixDouble44 M;
-	for (int r = 0; r < 4; r++)
-		for (int c = 0; c < 4; c++) M(r, c) = T.matrix()(r, c);
-	return mrpt::poses::CPose3D::FromHomogeneousMatrix(M);
-}
-}  // namespace
 
 void BowLoopDetector::initializeImpl(ParamReader& p)
 {
@@ -315,20 +311,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 				d.T_candidate_query = toPose(bestFit.T);
 			}
 			d.reason = !d.verified ? "inliers" : (d.score < minScore_ ? "score" : "ok");
-			if (d.verified && d.score >= minScore_ && (!best || d.inliers > best->inliers))
-			{
-				LoopConstraint c;
-				c.from = kfs_[bestKf].node;
-				c.to = kf.node;
-				c.T_from_to = d.T_candidate_query;
-				c.information = mrpt::math::CMatrixDouble66(
-					features::pointToPointInformation(kd.pts, bestFit.inliers, pointSigma_m_));
-				c.score = d.score;
-				c.inliers = d.inliers;
-				best = c;
-				bestDecision = decisions_.size();
-			}
-			decisions_.push_back(d);
+			considerLoop(d, bestFit, bestKf, kd, d.score >= minScore_, best, bestDecision);
 		}
 		if (best)
 		{
@@ -631,24 +614,32 @@ void BowLoopDetector::searchByDistance(const KeyframeData& kd, std::vector<LoopC
 			d.T_candidate_query = toPose(fit.T);
 		}
 		d.reason = d.verified ? "ok" : "inliers";
-		if (d.verified && (!best || d.inliers > best->inliers))
-		{
-			LoopConstraint c;
-			c.from = kfs_[bestKf].node;
-			c.to = kd.node;
-			c.T_from_to = d.T_candidate_query;
-			c.information = mrpt::math::CMatrixDouble66(
-				features::pointToPointInformation(kd.pts, fit.inliers, pointSigma_m_));
-			c.score = d.score;
-			c.inliers = d.inliers;
-			best = c;
-			bestDecision = decisions_.size();
-		}
-		decisions_.push_back(d);
+		considerLoop(d, fit, bestKf, kd, true, best, bestDecision);
 	}
 	if (best)
 	{
 		decisions_[bestDecision].accepted = true;
 		out.push_back(*best);
 	}
+}
+
+void BowLoopDetector::considerLoop(
+	const LoopDecision& d, const features::RigidResult& fit, std::size_t candidateKf,
+	const KeyframeData& query, bool acceptable, std::optional<LoopConstraint>& best,
+	std::size_t& bestDecision)
+{
+	if (d.verified && acceptable && (!best || d.inliers > best->inliers))
+	{
+		LoopConstraint c;
+		c.from = kfs_[candidateKf].node;
+		c.to = query.node;
+		c.T_from_to = d.T_candidate_query;
+		c.information = mrpt::math::CMatrixDouble66(
+			features::pointToPointInformation(query.pts, fit.inliers, pointSigma_m_));
+		c.score = d.score;
+		c.inliers = d.inliers;
+		best = c;
+		bestDecision = decisions_.size();
+	}
+	decisions_.push_back(d);
 }

@@ -9,6 +9,7 @@
 #include <mrpt/core/initializer.h>
 #include <mrpt/math/CMatrixFixed.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/core/pose_conversions.h>
 
 #include <chrono>
 #include <cmath>
@@ -119,12 +120,6 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 	Cloud::Ptr cloud = preprocess(scan);
 	const double prepMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 	const Eigen::Matrix4f prior = constantVelocity_ ? velocity_ : Eigen::Matrix4f::Identity();
-	auto toPose = [](const Eigen::Matrix4f& T) {
-		mrpt::math::CMatrixDouble44 M;
-		for (int i = 0; i < 4; i++)
-			for (int j = 0; j < 4; j++) M(i, j) = T(i, j);
-		return mrpt::poses::CPose3D::FromHomogeneousMatrix(M);
-	};
 
 	if (!previous_)
 	{
@@ -177,7 +172,7 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 	}
 	// GICP aligns the current scan (source) onto the previous one (target): that transform is
 	// the pose of the current scan in the previous scan's frame.
-	r.T_prev_curr = toPose(T);
+	r.T_prev_curr = toPose(Eigen::Isometry3d(T.cast<double>()));
 	if (r.status == TrackingStatus::Ok) velocity_ = T;
 	r.information.setZero();
 	for (int i = 0; i < 3; i++) r.information(i, i) = infoTranslation_;

@@ -2,6 +2,7 @@
 // last keyframe, RANSAC, back-projection to 3D and the closed-form rigid fit of equation (2).
 #include <mrpt/core/initializer.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/core/pose_conversions.h>
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/rigid_ransac.h>
@@ -65,17 +66,6 @@ MRPT_INITIALIZER(register_rasterslam_plugin_orb_odometry)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::OrbOdometry));
 }
-
-namespace
-{
-mrpt::poses::CPose3D toPose(const Eigen::Isometry3d& T)
-{
-	mrpt::math::CMatrixDouble44 M;
-	for (int r = 0; r < 4; r++)
-		for (int c = 0; c < 4; c++) M(r, c) = T.matrix()(r, c);
-	return mrpt::poses::CPose3D::FromHomogeneousMatrix(M);
-}
-}  // namespace
 
 void OrbOdometry::initializeImpl(ParamReader& p)
 {

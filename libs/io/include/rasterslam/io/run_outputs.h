@@ -4,13 +4,13 @@
 #include <Eigen/Geometry>
 #include <mrpt/containers/yaml.h>
 #include <rasterslam/core/engine.h>
+#include <rasterslam/core/pose_conversions.h>
 
 #include <string>
 
 namespace rasterslam::io
 {
-/** Converts an MRPT pose to the Eigen isometry used by the trajectory files. */
-Eigen::Isometry3d toIsometry(const mrpt::poses::CPose3D& p);
+using rasterslam::toIsometry;  // Eigen isometry of an MRPT pose (core/pose_conversions.h)
 
 /** Writes into `dir` (every file through a temporary name and a rename):
  *  - trajectory.tum, trajectory.kitti: one pose per processed scan;
