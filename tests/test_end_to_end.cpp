@@ -1,5 +1,6 @@
 // End to end through the command line: the GICP baseline on real KITTI scans, and every kind
 // of bad input getting one clear error, a non-zero exit, and the outputs of what was read.
+#include <rasterslam/io/kitti.h>
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/io/trajectory_io.h>
 
@@ -168,7 +169,8 @@ TEST(EndToEnd, BadScansStopTheRunButKeepWhatWasDone)
 		auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + gicpConfig() + " --out " + out.string());
 		EXPECT_EQ(r.exitCode, 1) << r.output;
 		EXPECT_NE(r.output.find(rawlog + ": scan #2"), std::string::npos) << r.output;
-		EXPECT_NE(r.output.find(bad == "nan" ? "1 are not finite" : "has 0 points"), std::string::npos) << r.output;
+		EXPECT_NE(r.output.find(bad == "nan" ? "has 1 non-finite points (NaN or inf)" : "has 0 points"), std::string::npos)
+			<< r.output;
 		EXPECT_EQ(lineCount(out / "trajectory.kitti"), 2u);  // the scans before the bad one
 
 		// With engine.on_bad_scan: skip the run goes on.
@@ -182,6 +184,19 @@ TEST(EndToEnd, BadScansStopTheRunButKeepWhatWasDone)
 		r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + cfg.string() + " --out " + out.string());
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		EXPECT_EQ(lineCount(out / "trajectory.kitti"), 3u);
+
+		if (bad == "nan")
+		{
+			// Dropping the non-finite points instead keeps every scan.
+			const auto cfg2 = dir / "drop-nan.yaml";
+			std::ifstream in(gicpConfig());
+			std::string text((std::istreambuf_iterator<char>(in)), {});
+			text = std::regex_replace(text, std::regex("on_bad_scan: error"), "on_bad_scan: error\n  drop_nonfinite_points: true");
+			std::ofstream(cfg2) << text;
+			r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + cfg2.string() + " --out " + out.string());
+			EXPECT_EQ(r.exitCode, 0) << r.output;
+			EXPECT_EQ(lineCount(out / "trajectory.kitti"), 4u);
+		}
 	}
 }
 
@@ -227,4 +242,49 @@ TEST(EndToEnd, ListPluginsShowsRoles)
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_TRUE(std::regex_search(r.output, std::regex("odometry +rasterslam::GicpOdometry"))) << r.output;
 	EXPECT_TRUE(std::regex_search(r.output, std::regex("optimizer +rasterslam::LevMarqOptimizer"))) << r.output;
+}
+
+TEST(EndToEnd, PaperPipelineIsDeterministicAndOutputsDoNotMix)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto a = test::tempDir("e2e-a"), b = test::tempDir("e2e-b");
+	const auto slam = test::sourcePath("share/rasterslam/config/slam.yaml");
+	for (const auto& out : {a, b})
+	{
+		const auto r = test::runCommand(
+			test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " + slam + " --quiet --out " +
+			out.string() + " --map-out " + (out / "map").string());
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+	}
+	for (const auto* f : {"trajectory.kitti", "loops.txt", "pose_graph.graph"})
+	{
+		std::ifstream fa(a / f), fb(b / f);
+		const std::string sa((std::istreambuf_iterator<char>(fa)), {}), sb((std::istreambuf_iterator<char>(fb)), {});
+		EXPECT_FALSE(sa.empty()) << f;
+		EXPECT_EQ(sa, sb) << f;
+	}
+	// A later run without a loop detector into the same folder leaves no loops.txt of the first.
+	const auto r = test::runCommand(
+		test::bin("rasterslam") + " run --rawlog " + kitti50() + " --last 5 --quiet --out " + a.string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_FALSE(fs::exists(a / "loops.txt"));
+	EXPECT_EQ(lineCount(a / "trajectory.kitti"), 6u);
+}
+
+TEST(EndToEnd, MissingExternalScanKeepsWhatCameBefore)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto dir = test::tempDir("e2e");
+	fs::create_directories(dir / "velo");
+	const auto bins = io::listKittiBins(D + "/velodyne");
+	for (int i = 0; i < 8; i++) fs::copy_file(bins[i], dir / "velo" / fs::path(bins[i]).filename());
+	const auto rawlog = (dir / "ext.rawlog").string();
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "velo").string() + " --external -o " + rawlog);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	fs::remove(dir / "velo" / fs::path(bins[5]).filename());
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --out " + (dir / "o").string());
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find(fs::path(bins[5]).filename().string() + "', which does not exist"), std::string::npos) << r.output;
+	EXPECT_EQ(lineCount(dir / "o" / "trajectory.kitti"), 5u);  // scans 0-4
 }

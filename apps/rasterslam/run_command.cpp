@@ -182,6 +182,7 @@ int runCommand(int argc, char** argv)
 	try
 	{
 		io::ensureWritableDir(outDir);
+		if (!mapOut.empty()) io::ensureWritableDir(mapOut);
 		if (configPath.empty()) configPath = findDefaultConfig();
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);
@@ -277,6 +278,7 @@ int runCommand(int argc, char** argv)
 	counts["rawlog_odometry_edges"] = static_cast<uint64_t>(res.odometryEdges);
 	counts["relocalized"] = static_cast<uint64_t>(res.relocalized);
 	counts["relocalization_failures"] = static_cast<uint64_t>(res.relocalizationFailures);
+	counts["loops_to_prior_map"] = static_cast<uint64_t>(res.loopsToPriorMap);
 	counts["skipped_bad_scans"] = static_cast<uint64_t>(res.skippedBadScans);
 	info["counts"] = counts;
 	yaml summary = yaml::Map();

@@ -2,6 +2,7 @@
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/plugin_loader.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -109,6 +110,7 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		optimizeAtEnd_ = p.getBool("optimize_at_end", true);
 		useRawlogOdometry_ = p.getBool("use_rawlog_odometry", false);
 		relocalizeOnLoss_ = p.getBool("relocalize_on_loss", true);
+		dropNonFinite_ = p.getBool("drop_nonfinite_points", false);
 		rawlogOdoSigma_m_ = p.getDouble("rawlog_odometry_sigma_m", rawlogOdoSigma_m_);
 		rawlogOdoSigma_deg_ = p.getDouble("rawlog_odometry_sigma_deg", rawlogOdoSigma_deg_);
 		if (!(rawlogOdoSigma_m_ > 0) || !(rawlogOdoSigma_deg_ > 0))
@@ -158,6 +160,9 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	std::optional<mrpt::poses::CPose3DPDFGaussian> odoSinceKf;
 	bool anchored = !opts.relocalizeFirstScan;  // false until located in a --map-in map
 
+	std::size_t currentIndex = 0;
+	try
+	{
 	for (;;)
 	{
 		const auto tRead = Clock::now();
@@ -166,18 +171,37 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		if (!scan) break;
 		if (opts.first && scan->index < *opts.first) continue;
 		if (opts.last && scan->index > *opts.last) break;
+		currentIndex = scan->index;
+		// The input's odometry of every scan counts, also of a scan dropped below.
+		if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
+		{
+			if (!odoSinceKf) odoSinceKf = *scan->odometryIncrement;
+			else
+				*odoSinceKf += *scan->odometryIncrement;
+		}
 
 		// Bad scans: non-finite coordinates or too few points.
 		std::size_t nonFinite = 0;
 		for (const auto& p : scan->points)
 			if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) ++nonFinite;
-		if (nonFinite > 0 || scan->points.size() < static_cast<std::size_t>(minPoints_))
+		if (nonFinite > 0 && dropNonFinite_)
 		{
-			const std::string what = mrpt::format(
-				"%s: scan #%zu (t=%.6f) has %zu points of which %zu are not finite; expected "
-				"at least %d finite points (engine.min_points)",
-				source.name().c_str(), scan->index, scan->stamp, scan->points.size(), nonFinite,
-				minPoints_);
+			// Organized clouds mark "no return" with NaN: drop those points only.
+			auto& v = scan->points;
+			v.erase(std::remove_if(v.begin(), v.end(), [](const PointXYZI& p) {
+				return !std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z);
+			}), v.end());
+		}
+		if ((nonFinite > 0 && !dropNonFinite_) || scan->points.size() < static_cast<std::size_t>(minPoints_))
+		{
+			const std::string what = nonFinite > 0 && !dropNonFinite_
+				? mrpt::format(
+					  "%s: scan #%zu (t=%.6f) has %zu non-finite points (NaN or inf) among %zu; set "
+					  "engine.drop_nonfinite_points: true to drop such points",
+					  source.name().c_str(), scan->index, scan->stamp, nonFinite, scan->points.size())
+				: mrpt::format(
+					  "%s: scan #%zu (t=%.6f) has %zu points; expected at least %d (engine.min_points)",
+					  source.name().c_str(), scan->index, scan->stamp, scan->points.size(), minPoints_);
 			if (!skipBadScans_)
 			{
 				res.error = what + "; set engine.on_bad_scan: skip to drop such scans";
@@ -238,12 +262,6 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		else
 			currPose = currPose + odo.T_prev_curr;
 		++stepsSinceKf;
-		if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
-		{
-			if (!odoSinceKf) odoSinceKf = *scan->odometryIncrement;
-			else
-				*odoSinceKf += *scan->odometryIncrement;
-		}
 
 		// Relocalization (paper, "Re-localization"): at the start of a session with a prior
 		// map, and whenever tracking is lost, the scan queries the loop detector's database
@@ -263,6 +281,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			{
 				const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
 				for (auto& [id, p] : graph.nodes) p = C + p;
+				loopDetector_->transformKeyframes(C);
 				lastKfPose = C + lastKfPose;
 				currPose = rl.pose;
 				anchored = true;
@@ -394,7 +413,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 					graph.insertEdge(lc.from, lc.to, e);
 					++res.loopEdges;
 				}
-				rec.ms.loop = msSince(t0);
+				rec.ms.loop += msSince(t0);
 			}
 		}
 		rec.kfNode = lastKf;
@@ -402,6 +421,14 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		rec.ms.total = msSince(tScan) + readMs;
 		res.scans.push_back(rec);
 		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
+	}
+	}
+	catch (const std::exception& e)
+	{
+		// A plugin or the input failed on one scan: what came before is kept and written.
+		std::string what = e.what();
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos) what.resize(pos);
+		res.error = source.name() + ": scan #" + std::to_string(currentIndex) + ": " + what;
 	}
 	res.stopReason = source.stopReason();
 	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();

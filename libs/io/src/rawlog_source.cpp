@@ -100,6 +100,10 @@ bool observationToPoints(
 	out.clear();
 	if (const auto* pc = dynamic_cast<const CObservationPointCloud*>(&o))
 	{
+		if (pc->isExternallyStored() && !std::filesystem::exists(pc->getExternalStorageFile()))
+			throw std::runtime_error(
+				source + ": point cloud '" + pc->sensorLabel + "' refers to external file '" +
+				pc->getExternalStorageFile() + "', which does not exist");
 		pc->load();	 // no-op unless externally stored
 		if (!pc->pointcloud)
 		{
@@ -329,7 +333,7 @@ bool RawlogSource::readOne()
 	catch (const mrpt::serialization::CExceptionEOF&)
 	{
 		if (impl_->counting->count() == before) return false;  // clean end between objects
-		stopReason_ = path_ + ": truncated: the file ends inside the object that starts at byte " +
+		stopReason_ = path_ + ": truncated: the file ends inside the object that starts at uncompressed byte " +
 			std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
 		return false;
 	}
@@ -347,14 +351,35 @@ bool RawlogSource::readOne()
 			throw std::runtime_error(
 				path_ + ": not an MRPT rawlog (the first object cannot be read): " + what);
 		if (full.find("EOF") != std::string::npos || full.find("Cannot read requested number") != std::string::npos)
-			stopReason_ = path_ + ": truncated: the file ends inside the object that starts at byte " +
+			stopReason_ = path_ + ": truncated: the file ends inside the object that starts at uncompressed byte " +
 				std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
 		else
-			stopReason_ = path_ + ": corrupt object at byte " + std::to_string(before) + " (after " +
+			stopReason_ = path_ + ": corrupt object at uncompressed byte " + std::to_string(before) + " (after " +
 				std::to_string(scans_) + " scans): " + what;
 		return false;
 	}
 	++objects_;
+	try
+	{
+		dispatch(obj);
+	}
+	catch (const std::exception& e)
+	{
+		// A scan that cannot be turned into points (a missing external file...) ends the
+		// stream like damage does: what was read before it is still processed.
+		std::string what = e.what();
+		if (const auto pos = what.find("Message:"); pos != std::string::npos)
+			what = what.substr(pos + 9, what.find('\n', pos) - pos - 9);
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos) what.resize(pos);
+		stopReason_ = what + " (object at uncompressed byte " + std::to_string(before) + ", after " +
+			std::to_string(scans_) + " scans)";
+		return false;
+	}
+	return true;
+}
+
+void RawlogSource::dispatch(const mrpt::serialization::CSerializable::Ptr& obj)
+{
 	if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(obj))
 	{
 		for (const auto& o : *sf)
@@ -378,7 +403,6 @@ bool RawlogSource::readOne()
 		}
 	}
 	// Other objects carry no scans or odometry: skipped.
-	return true;
 }
 
 std::optional<Scan> RawlogSource::next()

@@ -4,6 +4,7 @@
 #include <rasterslam/io/trajectory_io.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -20,12 +21,13 @@ void ensureWritableDir(const std::string& dir)
 		throw std::runtime_error(
 			"output folder '" + dir + "' cannot be created" + (ec ? ": " + ec.message() : ""));
 	const auto probe = fs::path(dir) / (".rasterslam-write-test-" + std::to_string(::getpid()));
+	bool ok = false;
 	{
 		std::ofstream f(probe);
-		if (!f || !(f << "x") || !f.flush())
-			throw std::runtime_error("output folder '" + dir + "' is not writable");
+		ok = f && (f << "x") && f.flush();
 	}
 	fs::remove(probe, ec);
+	if (!ok) throw std::runtime_error("output folder '" + dir + "' is not writable");
 }
 
 void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::containers::yaml& runInfo)
@@ -33,6 +35,9 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 	ensureWritableDir(dir);
 	const fs::path d(dir);
 
+	// Every file is first written under a temporary name; only when all are written are they
+	// renamed, so a failure (a full disk) leaves the previous run's outputs whole.
+	std::vector<std::pair<std::string, std::string>> files;	 // name, contents
 	Trajectory est, gt;
 	bool allGt = !res.scans.empty();
 	for (std::size_t i = 0; i < res.scans.size(); i++)
@@ -42,12 +47,12 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 		else
 			allGt = false;
 	}
-	saveTrajectoryTum((d / "trajectory.tum").string(), est);
-	saveTrajectoryKitti((d / "trajectory.kitti").string(), est);
+	files.emplace_back("trajectory.tum", formatTrajectoryTum(est));
+	files.emplace_back("trajectory.kitti", formatTrajectoryKitti(est));
 	if (allGt)
 	{
-		saveTrajectoryTum((d / "groundtruth.tum").string(), gt);
-		saveTrajectoryKitti((d / "groundtruth.kitti").string(), gt);
+		files.emplace_back("groundtruth.tum", formatTrajectoryTum(gt));
+		files.emplace_back("groundtruth.kitti", formatTrajectoryKitti(gt));
 	}
 
 	std::string csv =
@@ -58,7 +63,7 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 			"%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", r.index, r.stamp,
 			r.numPoints, toString(r.status), r.inliers, r.keyframe ? 1 : 0, r.late ? 1 : 0,
 			r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total);
-	writeFileAtomically((d / "timings.csv").string(), csv);
+	files.emplace_back("timings.csv", csv);
 
 	if (!res.loopDecisions.empty())
 	{
@@ -73,17 +78,46 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 				l.reason.empty() ? "-" : l.reason.c_str(), q.x(), q.y(), q.z(), q.quat().x(),
 				q.quat().y(), q.quat().z(), q.quat().r());
 		}
-		writeFileAtomically((d / "loops.txt").string(), txt);
+		files.emplace_back("loops.txt", txt);
 	}
 	{
-		const auto tmp = (d / (".pose_graph.graph.tmp-" + std::to_string(::getpid()))).string();
-		res.graph.saveToTextFile(tmp);
-		fs::rename(tmp, d / "pose_graph.graph");
+		std::stringstream ss;
+		runInfo.printAsYAML(ss);
+		files.emplace_back("run.yaml", ss.str());
 	}
 
-	std::stringstream ss;
-	runInfo.printAsYAML(ss);
-	writeFileAtomically((d / "run.yaml").string(), ss.str());
+	const std::string suffix = ".tmp-" + std::to_string(::getpid());
+	std::vector<std::string> written;
+	auto cleanup = [&] {
+		std::error_code ec;
+		for (const auto& w : written) fs::remove(d / (w + suffix), ec);
+	};
+	for (const auto& [name, contents] : files)
+	{
+		const auto tmp = d / (name + suffix);
+		std::ofstream f(tmp, std::ios::binary);
+		written.push_back(name);
+		if (!f || !f.write(contents.data(), static_cast<std::streamsize>(contents.size())) || !f.flush())
+		{
+			cleanup();
+			throw std::runtime_error("error writing '" + (d / name).string() + "' (disk full?); the previous outputs are kept");
+		}
+	}
+	written.push_back("pose_graph.graph");
+	try
+	{
+		res.graph.saveToTextFile((d / ("pose_graph.graph" + suffix)).string());
+	}
+	catch (const std::exception&)
+	{
+		cleanup();
+		throw std::runtime_error("error writing '" + (d / "pose_graph.graph").string() + "'; the previous outputs are kept");
+	}
+	for (const auto& w : written) fs::rename(d / (w + suffix), d / w);
+	// Files of an earlier run that this run does not produce would be mistaken for its own.
+	std::error_code ec;
+	for (const auto* stale : {"groundtruth.tum", "groundtruth.kitti", "loops.txt"})
+		if (std::find(written.begin(), written.end(), stale) == written.end()) fs::remove(d / stale, ec);
 }
 
 }  // namespace rasterslam::io

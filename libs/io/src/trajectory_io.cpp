@@ -180,6 +180,11 @@ Trajectory loadTrajectory(const std::string& path, TrajectoryFormat fmt, Traject
 
 void saveTrajectoryTum(const std::string& path, const Trajectory& traj)
 {
+	writeFileAtomically(path, formatTrajectoryTum(traj));
+}
+
+std::string formatTrajectoryTum(const Trajectory& traj)
+{
 	std::string out = "# timestamp tx ty tz qx qy qz qw\n";
 	for (const auto& sp : traj)
 	{
@@ -195,10 +200,15 @@ void saveTrajectoryTum(const std::string& path, const Trajectory& traj)
 		}
 		out += '\n';
 	}
-	writeFileAtomically(path, out);
+	return out;
 }
 
 void saveTrajectoryKitti(const std::string& path, const Trajectory& traj)
+{
+	writeFileAtomically(path, formatTrajectoryKitti(traj));
+}
+
+std::string formatTrajectoryKitti(const Trajectory& traj)
 {
 	std::string out;
 	for (const auto& sp : traj)
@@ -215,7 +225,7 @@ void saveTrajectoryKitti(const std::string& path, const Trajectory& traj)
 		}
 		out += '\n';
 	}
-	writeFileAtomically(path, out);
+	return out;
 }
 
 Eigen::Isometry3d loadKittiCalibTr(const std::string& calibPath)

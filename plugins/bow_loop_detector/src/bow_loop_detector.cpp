@@ -32,6 +32,7 @@ class BowLoopDetector : public LoopDetector
 	void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph) override;
 	void loadMap(const std::string& dir) override;
 	RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster) override;
+	void transformKeyframes(const mrpt::poses::CPose3D& C) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override;
@@ -248,6 +249,12 @@ void BowLoopDetector::finishMap()
 		vocab_->transform(maps_.back().desc, b);
 		maps_.back().entry = db_.add(b);
 		entryMap_[*maps_.back().entry] = maps_.size() - 1;
+		// Only the online vocabulary's retraining needs the descriptors again.
+		if (!online_)
+		{
+			maps_.back().desc.clear();
+			maps_.back().desc.shrink_to_fit();
+		}
 	}
 }
 
@@ -262,7 +269,6 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	kd.node = kf.node;
 	kd.stamp = kf.stamp;
 	kd.pose = kf.pose;
-	kd.data = kf.data;
 	const std::size_t n = kf.data->size();
 	kd.desc.create(static_cast<int>(n), 32, CV_8U);
 	for (std::size_t i = 0; i < n; i++)
@@ -270,6 +276,12 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		std::memcpy(kd.desc.ptr<uint8_t>(static_cast<int>(i)), &kf.data->descriptors[32 * i], 32);
 		kd.pts.emplace_back(kf.data->xyz[3 * i], kf.data->xyz[3 * i + 1], kf.data->xyz[3 * i + 2]);
 	}
+	// Keep the keyframe's other feature fields; descriptors and points live in desc/pts once.
+	kd.data = std::make_shared<Keyframe>(*kf.data);
+	kd.data->descriptors.clear();
+	kd.data->descriptors.shrink_to_fit();
+	kd.data->xyz.clear();
+	kd.data->xyz.shrink_to_fit();
 	if (raster)
 		for (const auto idx : raster->pixelToPoint)
 			if (idx >= 0) kd.cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
@@ -382,7 +394,14 @@ void BowLoopDetector::saveMap(const std::string& dir, const mrpt::graphs::CNetwo
 {
 	finishMap();  // even a one-scan run leaves a usable map
 	if (maps_.empty()) throw std::runtime_error("no keyframe was made: there is no map to save");
-	if (!vocab_) trainOnline();
+	if (!vocab_)
+	{
+		if (maps_.size() < 2)
+			throw std::runtime_error(
+				"the online vocabulary needs at least 2 local maps and this run made " +
+				std::to_string(maps_.size()) + ": give loop_detector.params.vocabulary_file");
+		trainOnline();
+	}
 	for (std::size_t i = 0; i < maps_.size(); i++)
 		if (!maps_[i].entry)
 		{
@@ -408,6 +427,9 @@ void BowLoopDetector::saveMap(const std::string& dir, const mrpt::graphs::CNetwo
 		{
 			Keyframe kf = k.data ? *k.data : Keyframe();
 			kf.id = k.node >= kPriorMapNodeOffset ? k.node - kPriorMapNodeOffset : k.node;
+			kf.descriptors.assign(k.desc.datastart, k.desc.dataend);
+			kf.xyz.clear();
+			for (const auto& q : k.pts) kf.xyz.insert(kf.xyz.end(), {q.x(), q.y(), q.z()});
 			kf.stamp = k.stamp;
 			kf.pose = k.pose;
 			a << kf;
@@ -420,11 +442,16 @@ void BowLoopDetector::saveMap(const std::string& dir, const mrpt::graphs::CNetwo
 		}
 	}
 	std::filesystem::rename(tmp, path);
-	// The local-map images, for a look.
+	// The local-map images, for a look: a fresh folder replaces the old one whole.
 	const auto imgDir = std::filesystem::path(dir) / "localmaps";
-	std::filesystem::create_directories(imgDir);
+	const auto tmpDir = std::filesystem::path(dir) / (".localmaps.tmp-" + std::to_string(::getpid()));
+	std::filesystem::remove_all(tmpDir);
+	std::filesystem::create_directories(tmpDir);
 	for (std::size_t i = 0; i < maps_.size(); i++)
-		maps_[i].image.saveToFile((imgDir / mrpt::format("%04zu.png", i)).string());
+		if (!maps_[i].image.saveToFile((tmpDir / mrpt::format("%04zu.png", i)).string()))
+			throw std::runtime_error("cannot write '" + (imgDir / mrpt::format("%04zu.png", i)).string() + "'");
+	std::filesystem::remove_all(imgDir);
+	std::filesystem::rename(tmpDir, imgDir);
 	MRPT_LOG_INFO_FMT("map saved to %s: %zu keyframes, %zu local maps", path.c_str(), kfs_.size(), maps_.size());
 }
 
@@ -464,6 +491,8 @@ void BowLoopDetector::loadMap(const std::string& dir)
 				std::memcpy(kd.desc.ptr<uint8_t>(static_cast<int>(j)), &kf->descriptors[32 * j], 32);
 				kd.pts.emplace_back(kf->xyz[3 * j], kf->xyz[3 * j + 1], kf->xyz[3 * j + 2]);
 			}
+			kf->descriptors.clear();
+			kf->xyz.clear();
 			kd.data = kf;
 			kfs_.push_back(std::move(kd));
 		}
@@ -642,4 +671,10 @@ void BowLoopDetector::considerLoop(
 		bestDecision = decisions_.size();
 	}
 	decisions_.push_back(d);
+}
+
+void BowLoopDetector::transformKeyframes(const mrpt::poses::CPose3D& C)
+{
+	for (auto& k : kfs_)
+		if (k.node < kPriorMapNodeOffset) k.pose = C + k.pose;  // this session's keyframes only
 }

@@ -299,8 +299,10 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		((sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ || !ok || bridged);
 	if (!usable)
 	{
-		// Keep tracking against the old references; the prior stands in for this frame.
+		// Keep tracking against the keyframe; the prior stands in for this frame, and the
+		// previous frame no longer matches T_kf_prev_: no bridge through it.
 		T_kf_prev_ = T_kf_curr;
+		prev_.reset();
 		return r;
 	}
 	if (r.keyframe)

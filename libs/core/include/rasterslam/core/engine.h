@@ -108,6 +108,7 @@ class Engine : public mrpt::system::COutputLogger
 	bool optimizeAtEnd_ = true;
 	bool useRawlogOdometry_ = false;
 	bool relocalizeOnLoss_ = true;
+	bool dropNonFinite_ = false;
 	double rawlogOdoSigma_m_ = 0.05, rawlogOdoSigma_deg_ = 0.5;
 };
 

@@ -168,6 +168,9 @@ class LoopDetector : public Plugin
 	virtual void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph);
 	/** Loads a map written by saveMap(); throws naming the file on damage. */
 	virtual void loadMap(const std::string& dir);
+	/** The engine moved this session's poses into a prior map's frame (pose = C + pose):
+	 *  move the keyframes the detector holds of this session alike. */
+	virtual void transformKeyframes(const mrpt::poses::CPose3D& /*C*/) {}
 	/** Locates a scan in the loaded (or built) map with no pose prior. */
 	virtual RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster);
 	/** Every candidate examined so far, in order. */

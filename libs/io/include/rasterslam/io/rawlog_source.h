@@ -16,6 +16,10 @@ namespace mrpt::obs
 {
 class CObservation;
 }
+namespace mrpt::serialization
+{
+class CSerializable;
+}
 
 namespace rasterslam::io
 {
@@ -55,6 +59,7 @@ class RawlogSource : public ScanSource
 
    private:
 	bool readOne();  // false at the end (normal or damage)
+	void dispatch(const std::shared_ptr<mrpt::serialization::CSerializable>& obj);
 	void handleObservation(const mrpt::obs::CObservation& obs);
 	void attachGroundTruth(int64_t stampTicks, const mrpt::poses::CPose3D& pose);
 

@@ -34,6 +34,9 @@ Trajectory loadTrajectory(
 /** Writes a file atomically (temporary name, then rename); throws naming the file. */
 void saveTrajectoryTum(const std::string& path, const Trajectory& traj);
 void saveTrajectoryKitti(const std::string& path, const Trajectory& traj);
+/** The text those functions write. */
+std::string formatTrajectoryTum(const Trajectory& traj);
+std::string formatTrajectoryKitti(const Trajectory& traj);
 
 /** Reads the `Tr:` line (Velodyne -> cam0) of a KITTI calib.txt as an isometry. */
 Eigen::Isometry3d loadKittiCalibTr(const std::string& calibPath);
