@@ -44,6 +44,7 @@ class OrbOdometry : public Odometry
 	features::MatchParams match_;
 	features::RansacParams ransac_;
 	int kfMinFrames_ = 5, kfMinShared_ = 100, kfMaxFrames_ = 20;
+	int weakInliers_ = 40;
 	double maxStep_m_ = 5.0, sigma_m_ = 0.1;
 	bool constantVelocity_ = true;
 	bool alignGround_ = true;
@@ -90,6 +91,7 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	kfMinFrames_ = p.getInt("keyframe_min_frames", kfMinFrames_);
 	kfMinShared_ = p.getInt("keyframe_min_shared", kfMinShared_);
 	kfMaxFrames_ = p.getInt("keyframe_max_frames", kfMaxFrames_);
+	weakInliers_ = p.getInt("weak_inliers", weakInliers_);
 	maxStep_m_ = p.getDouble("max_step_m", maxStep_m_);
 	sigma_m_ = p.getDouble("point_sigma_m", sigma_m_);
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
@@ -242,11 +244,12 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	auto est = track(*kf_, *cur, prior, true, scan.index);
 	if (!est.ok) est = track(*kf_, *cur, prior, false, scan.index);  // the gate may have been wrong
 	bool bridged = false;
-	if (!est.ok && prev_)
+	if ((!est.ok || static_cast<int>(est.inliers.size()) < weakInliers_) && prev_)
 	{
-		// The keyframe may be too far behind: bridge through the previous frame.
+		// The keyframe may be too far behind: bridge through the previous frame, and keep
+		// whichever estimate more matches agree with.
 		auto viaPrev = track(*prev_, *cur, velocity_, true, scan.index + 7919);
-		if (viaPrev.ok)
+		if (viaPrev.ok && viaPrev.inliers.size() > (est.ok ? est.inliers.size() : 0))
 		{
 			viaPrev.T = T_kf_prev_ * viaPrev.T;
 			est = std::move(viaPrev);
