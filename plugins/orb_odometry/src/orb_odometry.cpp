@@ -44,7 +44,7 @@ class OrbOdometry : public Odometry
 	features::MatchParams match_;
 	features::RansacParams ransac_;
 	int kfMinFrames_ = 5, kfMinShared_ = 100, kfMaxFrames_ = 20;
-	int weakInliers_ = 40;
+	int weakInliers_ = 30;
 	double maxStep_m_ = 5.0, sigma_m_ = 0.1;
 	bool constantVelocity_ = true;
 	bool alignGround_ = true;
