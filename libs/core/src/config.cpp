@@ -177,6 +177,14 @@ std::string ParamReader::getPath(const std::string& key, const std::string& def)
 	return v;
 }
 
+void ParamReader::requirePositive(double v, const std::string& key) const
+{
+	if (!(v > 0))
+		throw ConfigError(
+			(source_.empty() ? "" : source_ + ": ") + context_ + "." + key + ": must be > 0, got " +
+			std::to_string(v));
+}
+
 void ParamReader::finish() const
 {
 	if (!node_.isMap()) return;

@@ -57,16 +57,13 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 	g.iterations = p.getInt("ground_ransac_iterations", g.iterations);
 	g.inlierThreshold_m = p.getDouble("ground_inlier_threshold_m", g.inlierThreshold_m);
 	g.maxTilt_deg = p.getDouble("ground_max_tilt_deg", g.maxTilt_deg);
-	auto positive = [&](double v, const char* key) {
-		if (!(v > 0)) throw ConfigError(p.context() + "." + key + ": must be > 0");
-	};
-	positive(r.maxRange_m, "max_range_m");
-	positive(r.resolution_m, "resolution_m");
-	positive(r.pinholeSize_px, "pinhole_size_px");
-	positive(r.cameraHeight_m, "camera_height_m");
-	positive(r.greyMax_m - r.greyMin_m, "grey_max_m - grey_min_m");
-	positive(g.maxCandidates, "ground_max_candidates");
-	positive(g.iterations, "ground_ransac_iterations");
+	p.requirePositive(r.maxRange_m, "max_range_m");
+	p.requirePositive(r.resolution_m, "resolution_m");
+	p.requirePositive(r.pinholeSize_px, "pinhole_size_px");
+	p.requirePositive(r.cameraHeight_m, "camera_height_m");
+	p.requirePositive(r.greyMax_m - r.greyMin_m, "grey_max_m - grey_min_m");
+	p.requirePositive(g.maxCandidates, "ground_max_candidates");
+	p.requirePositive(g.iterations, "ground_ransac_iterations");
 	if (r.minRange_m >= r.maxRange_m) throw ConfigError(p.context() + ".min_range_m: must be below max_range_m");
 	if (r.mode == raster::ProjectionMode::Bev && 2 * r.maxRange_m / r.resolution_m > 8192)
 		throw ConfigError(p.context() + ".resolution_m: the image would exceed 8192 pixels a side");

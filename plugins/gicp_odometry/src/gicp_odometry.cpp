@@ -77,17 +77,13 @@ void GicpOdometry::initializeImpl(ParamReader& p)
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
 	infoTranslation_ = p.getDouble("information_translation", infoTranslation_);
 	infoRotation_ = p.getDouble("information_rotation", infoRotation_);
-	auto positive = [&](double v, const char* key) {
-		if (!(v > 0))
-			throw ConfigError(p.context() + "." + key + ": must be > 0, got " + std::to_string(v));
-	};
-	positive(voxel_m_, "voxel_m");
-	positive(maxRange_m_, "max_range_m");
-	positive(maxCorrespondence_m_, "max_correspondence_m");
-	positive(kCorrespondences_, "k_correspondences");
-	positive(maxIterations_, "max_iterations");
-	positive(keyframeEvery_, "keyframe_every");
-	positive(minPoints_, "min_points");
+	p.requirePositive(voxel_m_, "voxel_m");
+	p.requirePositive(maxRange_m_, "max_range_m");
+	p.requirePositive(maxCorrespondence_m_, "max_correspondence_m");
+	p.requirePositive(kCorrespondences_, "k_correspondences");
+	p.requirePositive(maxIterations_, "max_iterations");
+	p.requirePositive(keyframeEvery_, "keyframe_every");
+	p.requirePositive(minPoints_, "min_points");
 	previous_.reset();
 	previousCov_.reset();
 	velocity_.setIdentity();

@@ -43,6 +43,9 @@ class ParamReader
 	/** A file path; a relative one is taken relative to the config file's folder. */
 	std::string getPath(const std::string& key, const std::string& def);
 
+	/** Throws ConfigError naming `context.key` unless v > 0 (checks of values already read). */
+	void requirePositive(double v, const std::string& key) const;
+
 	/** Throws ConfigError listing keys present in the node that were never read. */
 	void finish() const;
 	/** Every parameter with the value in force (defaults included). */
