@@ -18,7 +18,7 @@ json() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" <<<"$1" | head -n1; }
 variant() {  # variant NAME SEARCH VOCAB -> config file
   local cfg="$WORK/$1.yaml"
   sed -e "s#vocabulary_file: ../vocab/elevation-k10l4.vocab#vocabulary_file: \"$3\"#" \
-      -e "s#    keyframes_per_map: 5 #    search: $2\n    keyframes_per_map: 5 #" \
+      -e "s#    exclude_recent_s: 30 #    search: $2\n    exclude_recent_s: 30 #" \
       "$here/share/rasterslam/config/slam.yaml" > "$cfg"
   echo "$cfg"
 }

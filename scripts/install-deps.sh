@@ -12,6 +12,7 @@ PKGS=(
   libmrpt-dev mrpt-apps
   libgtest-dev libgmock-dev
   zlib1g-dev
+  libceres-dev
 )
 
 if [ "${RASTERSLAM_SKIP_DEPS:-0}" = "1" ]; then

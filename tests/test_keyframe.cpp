@@ -2,7 +2,7 @@
 // an unknown version and inconsistent feature arrays.
 #include <mrpt/io/CMemoryStream.h>
 #include <mrpt/serialization/CArchive.h>
-#include <rasterslam/core/keyframe.h>
+#include <rasterslam/map/keyframe.h>
 
 #include <string>
 
@@ -14,6 +14,7 @@ TEST(Keyframe, SerializationRoundTrip)
 {
 	Keyframe k;
 	k.id = 12;
+	k.session = 3;
 	k.scanIndex = 345;
 	k.stamp = 1.7e9 + 0.25;
 	k.pose = mrpt::poses::CPose3D(1, -2, 0.5, 0.3, -0.02, 0.01);
@@ -48,7 +49,7 @@ TEST(Keyframe, SerializationRoundTrip)
 	const std::string raw(reinterpret_cast<const char*>(bytes), buf.getTotalBytesCount());
 	const auto at = raw.find(name);
 	ASSERT_NE(at, std::string::npos);
-	ASSERT_EQ(bytes[at + name.size()], 0);  // version 0
+	ASSERT_EQ(bytes[at + name.size()], 1);  // version 1
 	bytes[at + name.size()] = 9;
 	buf.Seek(0);
 	EXPECT_ANY_THROW(arch.ReadObject());

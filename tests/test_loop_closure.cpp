@@ -126,9 +126,16 @@ TEST(LoopClosure, ConfigurationErrors)
 	EXPECT_NE(r.output.find("vocabulary_file: '" + (dir / "nope.vocab").string() + "' does not exist"), std::string::npos)
 		<< r.output;  // relative to the config file's folder
 	r = runWith(
-		"odometry: {class: rasterslam::GicpOdometry}\n"
+		"odometry: {class: rasterslam::GicpOdometry}\nmap_manager: {class: rasterslam::LocalMapManager}\n"
 		"loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: " +
 		test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + "}}\n");
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find("needs keyframes with features"), std::string::npos) << r.output;
+	// The loop detector queries the map manager's map: without one the config is refused.
+	r = runWith(
+		"odometry: {class: rasterslam::OrbOdometry}\nrasterizer: {class: rasterslam::ElevationRasterizer}\n"
+		"loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: " +
+		test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + "}}\n");
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("'loop_detector' needs a 'map_manager'"), std::string::npos) << r.output;
 }

@@ -46,6 +46,26 @@ inline std::filesystem::path tempDir(const std::string& tag)
 	return p;
 }
 
+/** A fresh folder (see tempDir) removed with everything in it when the object goes out of
+ *  scope, also when the test fails. */
+class ScopedTempDir
+{
+   public:
+	explicit ScopedTempDir(const std::string& tag) : path_(tempDir(tag)) {}
+	~ScopedTempDir()
+	{
+		std::error_code ec;
+		std::filesystem::remove_all(path_, ec);
+	}
+	ScopedTempDir(const ScopedTempDir&) = delete;
+	ScopedTempDir& operator=(const ScopedTempDir&) = delete;
+	const std::filesystem::path& path() const { return path_; }
+	std::filesystem::path operator/(const std::string& sub) const { return path_ / sub; }
+
+   private:
+	std::filesystem::path path_;
+};
+
 }  // namespace rasterslam::test
 
 #include <array>

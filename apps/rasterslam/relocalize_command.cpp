@@ -54,9 +54,12 @@ int relocalizeCommand(int argc, char** argv)
 		io::ensureWritableDir(outDir);
 		if (configPath.empty()) configPath = findConfig("slam.yaml");
 		Engine engine(loadYamlFile(configPath), configPath);
-		if (!engine.rasterizer() || !engine.loopDetector())
-			throw ConfigError(configPath + ": relocalize needs a rasterizer and a loop_detector section");
-		engine.loopDetector()->loadMap(mapDir);
+		if (!engine.rasterizer() || !engine.loopDetector() || !engine.mapManager())
+			throw ConfigError(configPath + ": relocalize needs a rasterizer, a map_manager and a loop_detector section");
+		engine.loadMap(mapDir);
+		const Map& map = engine.mapManager()->map();
+		PoseView poses;
+		poses.prior = &map.priorPoses;
 		io::RawlogSource src(rawlog);
 		std::string txt = "# stamp status reason local_map keyframe keyframe_stamp score inliers x y z qx qy qz qw\n";
 		std::size_t n = 0, found = 0;
@@ -66,7 +69,7 @@ int relocalizeCommand(int argc, char** argv)
 			if (first && scan->index < *first) continue;
 			if (last && scan->index > *last) break;
 			engine.rasterizer()->rasterize(*scan, raster);
-			const auto r = engine.loopDetector()->relocalize(*scan, raster);
+			const auto r = engine.loopDetector()->relocalize(*scan, raster, map, poses);
 			const mrpt::poses::CPose3DQuat q(r.pose);
 			txt += mrpt::format(
 				"%.6f %s %s %llu %llu %.6f %.6f %zu %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", scan->stamp,

@@ -188,14 +188,16 @@ int runCommand(int argc, char** argv)
 		engine = std::make_unique<Engine>(cfg, configPath);
 		if (!mapIn.empty())
 		{
-			if (!engine->loopDetector() || !engine->rasterizer())
-				throw std::runtime_error("--map-in needs a rasterizer and a loop_detector in the config");
-			engine->loopDetector()->loadMap(mapIn);
+			if (!engine->mapManager() || !engine->loopDetector() || !engine->rasterizer())
+				throw std::runtime_error(
+					"--map-in needs a rasterizer, a map_manager and a loop_detector in the config, e.g. "
+					"share/rasterslam/config/slam.yaml");
+			engine->loadMap(mapIn);
 			opts.relocalizeFirstScan = true;
 		}
-		if (!mapOut.empty() && !engine->loopDetector())
+		if (!mapOut.empty() && !engine->mapManager())
 			throw std::runtime_error(
-				"--map-out needs a loop_detector in the config (it holds the map's database), e.g. "
+				"--map-out needs a map_manager in the config (it keeps the map), e.g. "
 				"share/rasterslam/config/slam.yaml");
 		engine->setLogLevel(logLevel);
 		io::RawlogSourceOptions so;
@@ -279,6 +281,10 @@ int runCommand(int argc, char** argv)
 	counts["relocalized"] = static_cast<uint64_t>(res.relocalized);
 	counts["relocalization_failures"] = static_cast<uint64_t>(res.relocalizationFailures);
 	counts["loops_to_prior_map"] = static_cast<uint64_t>(res.loopsToPriorMap);
+	counts["local_maps"] = static_cast<uint64_t>(res.localMaps);
+	counts["local_ba_runs"] = static_cast<uint64_t>(res.localBaRuns);
+	counts["online_optimizations"] = static_cast<uint64_t>(res.onlineOptimizations);
+	if (res.corruptedLoops > 0) counts["corrupted_loops_test_hook"] = static_cast<uint64_t>(res.corruptedLoops);
 	counts["skipped_bad_scans"] = static_cast<uint64_t>(res.skippedBadScans);
 	info["counts"] = counts;
 	yaml summary = yaml::Map();
@@ -289,6 +295,16 @@ int runCommand(int argc, char** argv)
 	summary["rasterize_ms_median"] = percentile(ras, 0.5);
 	summary["odometry_ms_median"] = percentile(odo, 0.5);
 	summary["peak_rss_mb"] = peakRssMb();
+	summary["online_optimization_ms_total"] = res.onlineOptimization_ms;
+	if (res.optimizer.ran)
+	{
+		summary["final_optimization_ms"] = res.optimizer.time_ms;
+		std::size_t downweighted = 0;
+		for (const auto& [e, w] : res.optimizer.edgeWeights) downweighted += w < 0.1;
+		if (!res.optimizer.edgeWeights.empty())
+			summary["loop_edges_downweighted"] = static_cast<uint64_t>(downweighted);
+	}
+	if (engine->mapManager()) summary["map_memory_mb"] = engine->mapManager()->map().memoryBytes() / 1e6;
 	summary["path_length_m"] = pathLen;
 	std::optional<double> ate;
 	if (!res.scans.empty() &&
@@ -312,7 +328,7 @@ int runCommand(int argc, char** argv)
 	{
 		try
 		{
-			engine->loopDetector()->saveMap(mapOut, res.graph);
+			engine->saveMap(mapOut, res.graph);
 		}
 		catch (const std::exception& e)
 		{

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <random>
 #include <thread>
 
 namespace rasterslam
@@ -113,6 +114,13 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		dropNonFinite_ = p.getBool("drop_nonfinite_points", false);
 		rawlogOdoSigma_m_ = p.getDouble("rawlog_odometry_sigma_m", rawlogOdoSigma_m_);
 		rawlogOdoSigma_deg_ = p.getDouble("rawlog_odometry_sigma_deg", rawlogOdoSigma_deg_);
+		optimizeOnline_ = p.getBool("optimize_online", optimizeOnline_);
+		optimizeEveryKeyframes_ = p.getInt("optimize_every_keyframes", optimizeEveryKeyframes_);
+		testCorruptLoops_ = p.getDouble("test_corrupt_loops", testCorruptLoops_);
+		if (optimizeEveryKeyframes_ < 1)
+			throw ConfigError(source_ + ": key 'engine.optimize_every_keyframes' must be >= 1");
+		if (!(testCorruptLoops_ >= 0 && testCorruptLoops_ <= 1))
+			throw ConfigError(source_ + ": key 'engine.test_corrupt_loops' must be in [0, 1]");
 		if (!(rawlogOdoSigma_m_ > 0) || !(rawlogOdoSigma_deg_ > 0))
 			throw ConfigError(source_ + ": engine.rawlog_odometry_sigma_m and _deg must be > 0");
 		p.finish();
@@ -129,6 +137,46 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		makeRole(cfg, "loop_detector", CLASS_ID(LoopDetector), false));
 	optimizer_ = std::dynamic_pointer_cast<Optimizer>(
 		makeRole(cfg, "optimizer", CLASS_ID(Optimizer), false));
+	if (loopDetector_ && !mapManager_)
+		throw ConfigError(
+			source_ + ": section 'loop_detector' needs a 'map_manager' (it queries the map the manager keeps), e.g. "
+					  "map_manager: {class: rasterslam::LocalMapManager}");
+}
+
+void Engine::loadMap(const std::string& dir)
+{
+	if (!mapManager_) throw std::runtime_error("loading a map needs a map_manager in the config");
+	mapManager_->loadMap(dir);
+	if (loopDetector_)
+	{
+		try
+		{
+			loopDetector_->loadPlaceIndex(mapManager_->map());
+		}
+		catch (const std::exception& e)
+		{
+			throw std::runtime_error("cannot read map '" + mapFilePath(dir) + "': " + e.what());
+		}
+	}
+}
+
+void Engine::saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph)
+{
+	if (!mapManager_) throw std::runtime_error("saving a map needs a map_manager in the config");
+	PoseView poses;
+	poses.live = [&graph](uint64_t id) -> const mrpt::poses::CPose3D* {
+		const auto it = graph.nodes.find(id);
+		return it == graph.nodes.end() ? nullptr : &it->second;
+	};
+	poses.prior = &mapManager_->map().priorPoses;
+	std::vector<uint8_t> index;
+	std::string cls;
+	if (loopDetector_)
+	{
+		index = loopDetector_->savePlaceIndex();
+		cls = loopDetector_->GetRuntimeClass()->className;
+	}
+	mapManager_->saveMap(dir, poses, cls, index);
 }
 
 void Engine::setLogLevel(mrpt::system::VerbosityLevel level)
@@ -145,7 +193,43 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	RunResult res;
 	auto& graph = res.graph;
 	graph.clear();
-	graph.root = 0;
+	// Keyframe ids continue those of a loaded map: unique across its sessions.
+	mrpt::graphs::TNodeID nextNode = mapManager_ ? mapManager_->map().nextKeyframeId() : 0;
+	graph.root = nextNode;
+	PoseView poses;
+	poses.live = [&graph](uint64_t id) -> const mrpt::poses::CPose3D* {
+		const auto it = graph.nodes.find(id);
+		return it == graph.nodes.end() ? nullptr : &it->second;
+	};
+	if (mapManager_) poses.prior = &mapManager_->map().priorPoses;
+	std::mt19937 corruptRng(12345);
+	std::size_t kfSinceOptimization = 0;
+	bool optimizationPending = false;
+	bool lostSinceKf = false;
+	// Writes what the mapping did: local BA's keyframe poses into the graph (the tracking edge
+	// between consecutive keyframes follows, so a later optimization keeps them), finished
+	// local maps into the place index.
+	auto applyMapping = [&](const MappingUpdate& up) {
+		if (!up.T_anchor_kf.empty())
+		{
+			++res.localBaRuns;
+			const mrpt::poses::CPose3D anchor = graph.nodes.at(up.anchor);
+			mrpt::graphs::TNodeID prev = up.anchor;
+			for (const auto& [id, T] : up.T_anchor_kf)
+			{
+				graph.nodes.at(id) = anchor + T;
+				const auto range = graph.edges.equal_range({prev, id});
+				if (range.first != range.second)
+					range.first->second.mean = graph.nodes.at(id) - graph.nodes.at(prev);
+				prev = id;
+			}
+		}
+		for (const auto& f : up.finished)
+		{
+			++res.localMaps;
+			if (loopDetector_) loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
+		}
+	};
 
 	const auto wall0 = Clock::now();
 	std::optional<double> firstStamp;
@@ -252,6 +336,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		if (odo.status == TrackingStatus::Lost)
 		{
 			++res.lost;
+			if (!(loopDetector_ && rasterPtr && relocalizeOnLoss_)) lostSinceKf = true;
 			MRPT_LOG_THROTTLE_WARN_STREAM(
 				1.0, "scan " << scan->index << ": tracking lost (" << odo.message
 							 << "); using the motion prior");
@@ -275,13 +360,12 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			// A session in a prior map: try every keyframe until one is found in it, then
 			// move everything tracked so far into the map's frame.
 			const auto t0 = Clock::now();
-			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr);
+			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
 			rec.ms.loop += msSince(t0);
 			if (rl.found)
 			{
 				const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
 				for (auto& [id, p] : graph.nodes) p = C + p;
-				loopDetector_->transformKeyframes(C);
 				lastKfPose = C + lastKfPose;
 				currPose = rl.pose;
 				anchored = true;
@@ -301,7 +385,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			loopDetector_ && rasterPtr && haveKf && odo.status == TrackingStatus::Lost && relocalizeOnLoss_)
 		{
 			const auto t0 = Clock::now();
-			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr);
+			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
 			rec.ms.loop += msSince(t0);
 			const auto it = graph.nodes.find(rl.keyframe);
 			if (rl.found)
@@ -328,6 +412,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			else
 			{
 				++res.relocalizationFailures;
+				lostSinceKf = true;
 				MRPT_LOG_THROTTLE_WARN_STREAM(
 					1.0, "scan " << scan->index << ": relocalization failed (" << rl.reason
 								 << "): a new, disconnected part of the map starts here");
@@ -336,7 +421,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 
 		if (!haveKf || odo.keyframe)
 		{
-			const mrpt::graphs::TNodeID id = graph.nodes.size();
+			const bool haveKfBefore = haveKf;
+			const mrpt::graphs::TNodeID id = nextNode++;
 			graph.nodes[id] = currPose;
 			if (haveKf)
 			{
@@ -373,7 +459,9 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				e.mean = relocEdge->T_from_to;
 				e.cov_inv = relocEdge->information;
 				graph.insertEdge(relocEdge->from, id, e);
+				res.uncertainEdges.insert({relocEdge->from, id});
 				++res.loopEdges;
+				optimizationPending = true;
 			}
 			lastKf = id;
 			lastKfPose = currPose;
@@ -382,7 +470,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			rec.keyframe = true;
 			++res.keyframes;
 
-			KeyframeInfo kf{id, scan->index, scan->stamp, currPose, odo.keyframeData};
+			KeyframeInfo kf{id, scan->index, scan->stamp, currPose, odo.keyframeData, lostSinceKf && haveKfBefore};
+			lostSinceKf = false;
 			if (kf.data)
 			{
 				kf.data->id = id;
@@ -393,13 +482,15 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			if (mapManager_)
 			{
 				const auto t0 = Clock::now();
-				mapManager_->addKeyframe(kf, *scan, rasterPtr);
+				applyMapping(mapManager_->addKeyframe(kf, *scan, rasterPtr, poses));
+				// Local BA may have moved this keyframe: tracking goes on from where it is now.
+				lastKfPose = currPose = kf.pose = graph.nodes.at(id);
 				rec.ms.mapping = msSince(t0);
 			}
 			if (loopDetector_)
 			{
 				const auto t0 = Clock::now();
-				for (const auto& lc : loopDetector_->detect(kf, *scan, rasterPtr))
+				for (auto lc : loopDetector_->detect(kf, mapManager_->map(), poses))
 				{
 					if (!graph.nodes.count(lc.from) || !graph.nodes.count(lc.to))
 					{
@@ -407,17 +498,41 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 						++res.loopsToPriorMap;
 						continue;
 					}
+					if (testCorruptLoops_ > 0 &&
+						std::uniform_real_distribution<double>(0, 1)(corruptRng) < testCorruptLoops_)
+					{
+						// Test hook: a wrong loop, as a perceptual alias would give (5 m, 20 deg).
+						lc.T_from_to = lc.T_from_to + mrpt::poses::CPose3D(5, -2, 0, 20 * M_PI / 180, 0, 0);
+						++res.corruptedLoops;
+					}
 					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
 					e.mean = lc.T_from_to;
 					e.cov_inv = lc.information;
 					graph.insertEdge(lc.from, lc.to, e);
+					res.uncertainEdges.insert({lc.from, lc.to});
+					mapManager_->loopAccepted(lc.from, lc.to, scan->stamp);
 					++res.loopEdges;
+					optimizationPending = true;
+				}
+				// Paper, "Loop Closure": the trajectory is optimized after a loop constraint is
+				// added (at most every optimize_every_keyframes keyframes).
+				++kfSinceOptimization;
+				if (optimizer_ && optimizeOnline_ && optimizationPending &&
+					kfSinceOptimization >= static_cast<std::size_t>(optimizeEveryKeyframes_))
+				{
+					const auto r = optimizer_->optimize(graph, res.uncertainEdges);
+					++res.onlineOptimizations;
+					res.onlineOptimization_ms += r.time_ms;
+					optimizationPending = false;
+					kfSinceOptimization = 0;
+					lastKfPose = currPose = graph.nodes.at(id);
 				}
 				rec.ms.loop += msSince(t0);
 			}
 		}
 		rec.kfNode = lastKf;
 		rec.T_kf_scan = currPose - lastKfPose;
+		rec.onlinePose = currPose;
 		rec.ms.total = msSince(tScan) + readMs;
 		res.scans.push_back(rec);
 		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
@@ -432,14 +547,24 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	}
 	res.stopReason = source.stopReason();
 	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();
-	if (mapManager_) mapManager_->finish();
+	if (mapManager_)
+	{
+		try
+		{
+			applyMapping(mapManager_->finish(poses));
+		}
+		catch (const std::exception& e)
+		{
+			if (res.error.empty()) res.error = std::string("finishing the map: ") + e.what();
+		}
+	}
 
 	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))
 	{
 		MRPT_LOG_INFO_STREAM(
 			"optimizing the pose graph: " << graph.nodes.size() << " nodes, " << graph.edges.size()
 										  << " edges");
-		res.optimizer = optimizer_->optimize(graph);
+		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges);
 	}
 	res.poses.reserve(res.scans.size());
 	for (const auto& r : res.scans) res.poses.push_back(graph.nodes.at(r.kfNode) + r.T_kf_scan);

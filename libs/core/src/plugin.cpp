@@ -28,15 +28,3 @@ const char* rasterslam::toString(TrackingStatus s)
 	return "?";
 }
 
-void LoopDetector::saveMap(const std::string&, const mrpt::graphs::CNetworkOfPoses3DInf&)
-{
-	throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot save a map");
-}
-void LoopDetector::loadMap(const std::string&)
-{
-	throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot load a map");
-}
-RelocalizationResult LoopDetector::relocalize(const Scan&, const RasterFrame&)
-{
-	throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot relocalize");
-}

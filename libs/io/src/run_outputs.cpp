@@ -38,17 +38,20 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 	// Every file is first written under a temporary name; only when all are written are they
 	// renamed, so a failure (a full disk) leaves the previous run's outputs whole.
 	std::vector<std::pair<std::string, std::string>> files;	 // name, contents
-	Trajectory est, gt;
+	Trajectory est, online, gt;
 	bool allGt = !res.scans.empty();
 	for (std::size_t i = 0; i < res.scans.size(); i++)
 	{
 		est.push_back({res.scans[i].stamp, toIsometry(res.poses[i])});
+		online.push_back({res.scans[i].stamp, toIsometry(res.scans[i].onlinePose)});
 		if (res.scans[i].groundTruth) gt.push_back({res.scans[i].stamp, toIsometry(*res.scans[i].groundTruth)});
 		else
 			allGt = false;
 	}
 	files.emplace_back("trajectory.tum", formatTrajectoryTum(est));
 	files.emplace_back("trajectory.kitti", formatTrajectoryKitti(est));
+	// What a robot would have acted on: each scan's pose when it was processed.
+	files.emplace_back("trajectory_online.tum", formatTrajectoryTum(online));
 	if (allGt)
 	{
 		files.emplace_back("groundtruth.tum", formatTrajectoryTum(gt));

@@ -1,11 +1,12 @@
 // Loop closure over a bag-of-words database of local-map images (paper, "BOW Database" and
-// "Loop Closure"): keyframes are grouped into local maps; a finished local map's points are
-// rasterized into one image whose ORB words enter the database; every new keyframe queries
-// it, and candidates are verified by matching against the keyframes of the local map.
+// "Loop Closure"): the map manager hands over each finished local map's image words; every
+// new keyframe queries the database, and candidates are verified by matching the keyframe's
+// features against the candidate local map's points (after its local BA).
+#include <mrpt/io/CMemoryStream.h>
+
 #include "bow_loop_detector.h"
 
 using namespace rasterslam;
-
 
 IMPLEMENTS_MRPT_OBJECT(BowLoopDetector, LoopDetector, rasterslam)
 
@@ -23,14 +24,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	onlineMinMaps_ = p.getInt("online_min_maps", onlineMinMaps_);
 	onlineBranching_ = p.getInt("online_branching", onlineBranching_);
 	onlineLevels_ = p.getInt("online_levels", onlineLevels_);
-	keyframesPerMap_ = p.getInt("keyframes_per_map", keyframesPerMap_);
-	mapRaster_.resolution_m = p.getDouble("map_resolution_m", 0.2);
-	mapRaster_.maxRange_m = p.getDouble("map_extent_m", 60.0);
-	mapRaster_.minRange_m = 0;
-	mapRaster_.removeGround = false;  // the keyframe clouds hold no ground already
-	mapRaster_.belowGround_m = 1e6;
-	mapOrb_.numFeatures = p.getInt("map_features", 3000);
-	mapOrb_.levels = 3;
+	queryOrb_.numFeatures = p.getInt("query_features", 3000);
+	queryOrb_.levels = 3;
 	excludeRecent_s_ = p.getDouble("exclude_recent_s", excludeRecent_s_);
 	minScore_ = p.getDouble("min_score", minScore_);
 	maxCandidates_ = p.getInt("max_candidates", maxCandidates_);
@@ -40,11 +35,11 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	ransac_.minInliers = p.getInt("min_inliers", 25);
 	ransac_.maxIterations = p.getInt("ransac_max_iterations", 1000);
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
-	if (keyframesPerMap_ < 1) throw ConfigError(p.context() + ".keyframes_per_map: must be >= 1");
 	if (onlineMinMaps_ < 2) throw ConfigError(p.context() + ".online_min_maps: must be >= 2");
 	if (maxCandidates_ < 1) throw ConfigError(p.context() + ".max_candidates: must be >= 1");
+	if (queryOrb_.numFeatures < 1) throw ConfigError(p.context() + ".query_features: must be >= 1");
 
-	orb_ = std::make_unique<features::OrbExtractor>(mapOrb_);
+	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);
 	vocab_.reset();
 	online_ = vocabularyFile_.empty();
 	if (!online_)
@@ -59,10 +54,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 			throw ConfigError(p.context() + ".vocabulary_file: '" + vocabularyFile_ + "' holds no vocabulary");
 	}
 	db_ = bow::Database();
-	kfs_.clear();
-	maps_.clear();
 	entryMap_.clear();
-	open_.clear();
+	trainingImages_.clear();
 	prevBow_.reset();
 	trainedOn_ = 0;
 	decisions_.clear();
@@ -73,173 +66,199 @@ std::vector<bow::Descriptor> BowLoopDetector::descriptorsOf(const cv::Mat& m) co
 	return bow::toDescriptors(m.ptr<uint8_t>(0), static_cast<std::size_t>(m.rows));
 }
 
+void BowLoopDetector::addEntry(uint64_t localMap, const std::vector<bow::Descriptor>& desc)
+{
+	bow::BowVector b;
+	vocab_->transform(desc, b);
+	entryMap_[db_.add(b)] = localMap;
+}
+
 void BowLoopDetector::trainOnline()
 {
 	std::vector<std::vector<bow::Descriptor>> images;
-	for (const auto& m : maps_) images.push_back(m.desc);
+	for (const auto& [id, d] : trainingImages_) images.push_back(d);
 	auto v = std::make_shared<bow::Vocabulary>();
 	bow::TrainParams tp;
 	tp.branching = onlineBranching_;
 	tp.levels = onlineLevels_;
 	v->train(images, tp);
 	vocab_ = v;
-	trainedOn_ = maps_.size();
+	trainedOn_ = trainingImages_.size();
 	// New words: every entry is indexed again.
 	db_ = bow::Database();
 	entryMap_.clear();
-	for (std::size_t i = 0; i < maps_.size(); i++)
-	{
-		bow::BowVector b;
-		vocab_->transform(maps_[i].desc, b);
-		maps_[i].entry = db_.add(b);
-		entryMap_[*maps_[i].entry] = i;
-	}
-	MRPT_LOG_INFO_FMT("online vocabulary trained on %zu local-map images: %zu words", maps_.size(), vocab_->words());
+	for (const auto& [id, d] : trainingImages_) addEntry(id, d);
+	MRPT_LOG_INFO_FMT(
+		"online vocabulary trained on %zu local-map images: %zu words", trainingImages_.size(), vocab_->words());
 }
 
-void BowLoopDetector::finishMap()
+void BowLoopDetector::index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors)
 {
-	if (open_.empty()) return;
-	LocalMap lm;
-	lm.keyframes = open_;
-	open_.clear();
-	// The local map's points in the frame of its first keyframe, rasterized into one image.
-	const auto& first = kfs_[lm.keyframes.front()];
-	std::vector<PointXYZI> pts;
-	for (const auto k : lm.keyframes)
-	{
-		const auto& kd = kfs_[k];
-		lm.newestStamp = std::max(lm.newestStamp, kd.stamp);
-		const mrpt::poses::CPose3D T = kd.pose - first.pose;
-		for (const auto& q : kd.cloud)
-		{
-			double x, y, z;
-			T.composePoint(q.x, q.y, q.z, x, y, z);
-			pts.push_back({float(x), float(y), float(z), q.intensity});
-		}
-	}
-	// The clouds were only needed for this image: free them (memory must not grow with the
-	// points of every keyframe ever made).
-	for (const auto k : lm.keyframes)
-	{
-		kfs_[k].cloud.clear();
-		kfs_[k].cloud.shrink_to_fit();
-	}
-	RasterFrame img;
-	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
-	std::vector<cv::KeyPoint> kps;
-	cv::Mat desc;
-	orb_->extract(img.image.asCvMatRef(), kps, desc);
-	lm.desc = descriptorsOf(desc);
-	lm.image = img.image;
-	maps_.push_back(std::move(lm));
+	auto desc = bow::toDescriptors(imageDescriptors.data(), imageDescriptors.size() / 32);
 	if (online_)
 	{
-		if (static_cast<int>(maps_.size()) >= onlineMinMaps_ && maps_.size() >= 2 * trainedOn_)
+		trainingImages_[lm.id] = desc;
+		if (static_cast<int>(trainingImages_.size()) >= onlineMinMaps_ && trainingImages_.size() >= 2 * trainedOn_)
 		{
 			trainOnline();
 			return;
 		}
 	}
-	if (vocab_)
-	{
-		bow::BowVector b;
-		vocab_->transform(maps_.back().desc, b);
-		maps_.back().entry = db_.add(b);
-		entryMap_[*maps_.back().entry] = maps_.size() - 1;
-		// Only the online vocabulary's retraining needs the descriptors again.
-		if (!online_)
-		{
-			maps_.back().desc.clear();
-			maps_.back().desc.shrink_to_fit();
-		}
-	}
+	if (vocab_) addEntry(lm.id, desc);
 }
 
-std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster)
+namespace
+{
+cv::Mat descriptorMat(const std::vector<uint8_t>& bytes)
+{
+	// A view, not a copy: the bytes outlive the matching.
+	return cv::Mat(static_cast<int>(bytes.size() / 32), 32, CV_8U, const_cast<uint8_t*>(bytes.data()));
+}
+}  // namespace
+
+BowLoopDetector::Verified BowLoopDetector::verify(
+	const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe) const
+{
+	Verified v;
+	const std::size_t n = lm.points();
+	if (n == 0 || q.desc.rows == 0) return v;
+	std::vector<int> rows;  // local-map point of each candidate row
+	cv::Mat cand;
+	if (onlyKeyframe < 0) cand = descriptorMat(lm.descriptors);
+	else
+	{
+		cand.create(0, 32, CV_8U);
+		for (std::size_t i = 0; i < n; i++)
+			if (lm.observers[i] & (1u << onlyKeyframe))
+			{
+				rows.push_back(static_cast<int>(i));
+				cand.push_back(cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
+			}
+	}
+	const auto matches = features::matchMutual(q.desc, cand, match_);
+	std::vector<Eigen::Vector3f> p, m;
+	for (const auto& mt : matches)
+	{
+		const int i = rows.empty() ? mt.b : rows[static_cast<std::size_t>(mt.b)];
+		p.push_back(q.pts[static_cast<std::size_t>(mt.a)]);
+		m.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
+	}
+	v.fit = features::ransacRigid(p, m, ransac_, seed);
+	for (auto& i : v.fit.inliers) i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
+	return v;
+}
+
+uint64_t BowLoopDetector::nearestKeyframe(
+	const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose, const PoseView& poses)
+{
+	const auto anchor = poses.at(lm.anchor());
+	uint64_t best = lm.anchor();
+	double bestD = std::numeric_limits<double>::max();
+	for (const auto k : lm.keyframes)
+	{
+		const auto T_anchor_kf = poses.at(k) - anchor;
+		const double d = (Eigen::Vector3d(T_anchor_kf.x(), T_anchor_kf.y(), T_anchor_kf.z()) -
+						  T_anchor_pose.translation())
+							 .norm();
+		if (d < bestD)
+		{
+			bestD = d;
+			best = k;
+		}
+	}
+	return best;
+}
+
+void BowLoopDetector::consider(
+	LoopDecision d, const Verified& v, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
+	const Map& map, const PoseView& poses, bool acceptable, std::optional<LoopConstraint>& best,
+	std::size_t& bestDecision)
+{
+	d.candidateMap = lm.id;
+	d.inliers = v.fit.inliers.size();
+	d.verified = v.fit.ok;
+	uint64_t kfId = lm.anchor();
+	mrpt::poses::CPose3D T_kf_query;
+	if (!v.fit.inliers.empty())
+	{
+		// The fit is in the anchor's frame; loops.txt and the edge use the local map's keyframe
+		// nearest to the query.
+		kfId = nearestKeyframe(lm, v.fit.T, poses);
+		const auto T_anchor_kf = poses.at(kfId) - poses.at(lm.anchor());
+		T_kf_query = (mrpt::poses::CPose3D() - T_anchor_kf) + toPose(v.fit.T);
+		d.T_candidate_query = T_kf_query;
+		d.candidateStamp = map.keyframes.at(kfId)->stamp;
+	}
+	if (d.verified && acceptable && (!best || d.inliers > best->inliers))
+	{
+		LoopConstraint c;
+		c.from = kfId;
+		c.to = kf.node;
+		c.T_from_to = T_kf_query;
+		c.information = mrpt::math::CMatrixDouble66(
+			features::pointToPointInformation(q.pts, v.fit.inliers, pointSigma_m_));
+		c.score = d.score;
+		c.inliers = d.inliers;
+		c.localMap = lm.id;
+		best = c;
+		bestDecision = decisions_.size();
+	}
+	decisions_.push_back(d);
+}
+
+std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, const Map& map, const PoseView& poses)
 {
 	if (!kf.data)
 		throw std::runtime_error(
-			"rasterslam::BowLoopDetector needs keyframes with features: use an odometry that provides them (e.g. rasterslam::OrbOdometry)");
+			"rasterslam::BowLoopDetector needs keyframes with features: use an odometry that provides them (e.g. "
+			"rasterslam::OrbOdometry)");
 	std::vector<LoopConstraint> out;
 	const std::size_t decisionsBefore = decisions_.size();
-	KeyframeData kd;
-	kd.node = kf.node;
-	kd.stamp = kf.stamp;
-	kd.pose = kf.pose;
+	Query q;
 	const std::size_t n = kf.data->size();
-	kd.desc.create(static_cast<int>(n), 32, CV_8U);
+	q.desc = descriptorMat(kf.data->descriptors);
 	for (std::size_t i = 0; i < n; i++)
-	{
-		std::memcpy(kd.desc.ptr<uint8_t>(static_cast<int>(i)), &kf.data->descriptors[32 * i], 32);
-		kd.pts.emplace_back(kf.data->xyz[3 * i], kf.data->xyz[3 * i + 1], kf.data->xyz[3 * i + 2]);
-	}
-	// Keep the keyframe's other feature fields; descriptors and points live in desc/pts once.
-	kd.data = std::make_shared<Keyframe>(*kf.data);
-	kd.data->descriptors.clear();
-	kd.data->descriptors.shrink_to_fit();
-	kd.data->xyz.clear();
-	kd.data->xyz.shrink_to_fit();
-	if (raster)
-		for (const auto idx : raster->pixelToPoint)
-			if (idx >= 0) kd.cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
+		q.pts.emplace_back(kf.data->xyz[3 * i], kf.data->xyz[3 * i + 1], kf.data->xyz[3 * i + 2]);
 
-	if (search_ != Search::Bow)
+	std::optional<LoopConstraint> best;
+	std::size_t bestDecision = 0;
+	if (search_ != Search::Bow) searchByDistance(q, kf, map, poses, best, bestDecision);
+	else if (vocab_ && n > 0)
 	{
-		searchByDistance(kd, out);
-	}
-	// Query the database with this keyframe's words.
-	else if (vocab_ && db_.size() > 0 && n > 0)
-	{
-		bow::BowVector q;
-		vocab_->transform(descriptorsOf(kd.desc), q);
+		// Query the database with this keyframe's words.
+		bow::BowVector b;
+		vocab_->transform(descriptorsOf(q.desc), b);
 		// DBoW2 normalizes by the score against the previous keyframe: what a "good" match
 		// looks like here and now.
-		const double norm = prevBow_ ? bow::Vocabulary::score(q, *prevBow_) : 1.0;
-		const auto results = db_.query(q, static_cast<std::size_t>(maxResults_));
+		const double norm = prevBow_ ? bow::Vocabulary::score(b, *prevBow_) : 1.0;
+		const auto results = db_.size() > 0 ? db_.query(b, static_cast<std::size_t>(maxResults_))
+											: std::vector<bow::Database::Result>{};
 		int examined = 0;
-		std::optional<LoopConstraint> best;
-		std::size_t bestDecision = 0;
 		for (const auto& r : results)
 		{
-			const auto mi = entryMap_.at(r.entry);
-			const auto& lm = maps_[mi];
-			if (lm.newestStamp > kf.stamp - excludeRecent_s_) continue;	 // recent: not a loop
+			const auto it = map.localMaps.find(entryMap_.at(r.entry));
+			if (it == map.localMaps.end()) continue;  // not in this map (cannot happen unless removed)
+			const auto& lm = *it->second;
+			if (lm.updatedStamp > kf.stamp - excludeRecent_s_) continue;  // recent: not a loop
 			if (examined++ >= maxCandidates_) break;
 			LoopDecision d;
 			d.queryStamp = kf.stamp;
-			d.candidateMap = mi;
 			d.score = norm > 1e-6 ? r.score / norm : 0;
-			// Verify against every keyframe of the candidate map; keep the best.
-			std::size_t bestKf = 0;
-			const auto bestFit = verify(kd.desc, kd.pts, lm, static_cast<uint32_t>(kf.node * 31), bestKf);
-			d.inliers = bestFit.inliers.size();
-			d.verified = bestFit.ok;
-			if (!bestFit.inliers.empty())
-			{
-				d.candidateStamp = kfs_[bestKf].stamp;
-				d.T_candidate_query = toPose(bestFit.T);
-			}
-			d.reason = !d.verified ? "inliers" : (d.score < minScore_ ? "score" : "ok");
-			considerLoop(d, bestFit, bestKf, kd, d.score >= minScore_, best, bestDecision);
+			const auto v = verify(q, lm, static_cast<uint32_t>(kf.node * 31 + lm.id));
+			d.reason = !v.fit.ok ? "inliers" : (d.score < minScore_ ? "score" : "ok");
+			consider(d, v, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision);
 		}
-		if (best)
-		{
-			decisions_[bestDecision].accepted = true;
-			out.push_back(*best);
-			MRPT_LOG_INFO_FMT(
-				"loop: keyframe %u (t=%.2f) -> keyframe %u, score %.2f, %zu inliers", static_cast<unsigned>(best->to),
-				kf.stamp, static_cast<unsigned>(best->from), best->score, best->inliers);
-		}
-		prevBow_ = q;
+		prevBow_ = b;
 	}
-	else if (vocab_ && n > 0)
+	if (best)
 	{
-		bow::BowVector q;
-		vocab_->transform(descriptorsOf(kd.desc), q);
-		prevBow_ = q;
+		decisions_[bestDecision].accepted = true;
+		out.push_back(*best);
+		MRPT_LOG_INFO_FMT(
+			"loop: keyframe %llu (t=%.2f) -> keyframe %llu in local map %llu, score %.2f, %zu inliers",
+			static_cast<unsigned long long>(best->to), kf.stamp, static_cast<unsigned long long>(best->from),
+			static_cast<unsigned long long>(best->localMap), best->score, best->inliers);
 	}
-
 	// Every query leaves a line, so that recall counts the keyframes that found nothing.
 	if (decisions_.size() == decisionsBefore)
 	{
@@ -248,56 +267,57 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		none.reason = "none";
 		decisions_.push_back(none);
 	}
-	kfs_.push_back(std::move(kd));
-	open_.push_back(kfs_.size() - 1);
-	if (static_cast<int>(open_.size()) >= keyframesPerMap_) finishMap();
 	return out;
 }
 
-features::RigidResult BowLoopDetector::verify(
-	const cv::Mat& desc, const std::vector<Eigen::Vector3f>& pts, const LocalMap& lm, uint32_t seed,
-	std::size_t& bestKf) const
+std::vector<uint8_t> BowLoopDetector::savePlaceIndex()
 {
-	features::RigidResult best;
-	for (const auto k : lm.keyframes)
+	if (!vocab_)
 	{
-		const auto& cand = kfs_[k];
-		const auto matches = features::matchMutual(desc, cand.desc, match_);
-		std::vector<Eigen::Vector3f> p, q;
-		for (const auto& m : matches)
-		{
-			p.push_back(pts[m.a]);
-			q.push_back(cand.pts[m.b]);
-		}
-		auto fit = features::ransacRigid(p, q, ransac_, seed + static_cast<uint32_t>(k));
-		if (fit.inliers.size() > best.inliers.size())
-		{
-			for (auto& i : fit.inliers) i = matches[i].a;
-			best = std::move(fit);
-			bestKf = k;
-		}
+		if (trainingImages_.size() < 2)
+			throw std::runtime_error(
+				"the online vocabulary needs at least 2 local maps and this run made " +
+				std::to_string(trainingImages_.size()) + ": give loop_detector.params.vocabulary_file");
+		trainOnline();
 	}
-	return best;
+	mrpt::io::CMemoryStream buf;
+	auto a = mrpt::serialization::archiveFrom(buf);
+	const uint8_t version = 0;
+	a << version << *vocab_ << db_ << static_cast<uint64_t>(entryMap_.size());
+	for (const auto& [e, lm] : entryMap_) a << static_cast<uint32_t>(e) << lm;
+	const auto* p = static_cast<const uint8_t*>(buf.getRawBufferData());
+	return std::vector<uint8_t>(p, p + buf.getTotalBytesCount());
 }
 
-void BowLoopDetector::considerLoop(
-	const LoopDecision& d, const features::RigidResult& fit, std::size_t candidateKf,
-	const KeyframeData& query, bool acceptable, std::optional<LoopConstraint>& best,
-	std::size_t& bestDecision)
+void BowLoopDetector::loadPlaceIndex(const Map& map)
 {
-	if (d.verified && acceptable && (!best || d.inliers > best->inliers))
+	const std::string mine = GetRuntimeClass()->className;
+	if (map.placeIndex.empty())
+		throw std::runtime_error("the map has no place index (it was saved without a loop detector)");
+	if (map.placeIndexClass != mine)
+		throw std::runtime_error("the map's place index was written by " + map.placeIndexClass + ", not " + mine);
+	mrpt::io::CMemoryStream buf;
+	buf.assignMemoryNotOwn(map.placeIndex.data(), map.placeIndex.size());
+	auto a = mrpt::serialization::archiveFrom(buf);
+	uint8_t version = 0;
+	a >> version;
+	if (version != 0) throw std::runtime_error("unknown place index version " + std::to_string(version));
+	auto v = std::make_shared<bow::Vocabulary>();
+	a >> *v >> db_;
+	vocab_ = v;
+	uint64_t n = 0;
+	a >> n;
+	entryMap_.clear();
+	for (uint64_t i = 0; i < n; i++)
 	{
-		LoopConstraint c;
-		c.from = kfs_[candidateKf].node;
-		c.to = query.node;
-		c.T_from_to = d.T_candidate_query;
-		c.information = mrpt::math::CMatrixDouble66(
-			features::pointToPointInformation(query.pts, fit.inliers, pointSigma_m_));
-		c.score = d.score;
-		c.inliers = d.inliers;
-		best = c;
-		bestDecision = decisions_.size();
+		uint32_t e = 0;
+		uint64_t lm = 0;
+		a >> e >> lm;
+		if (!db_.contains(e)) throw std::runtime_error("the place index refers to a missing database entry");
+		if (!map.localMaps.count(lm)) throw std::runtime_error("the place index refers to a missing local map");
+		entryMap_[e] = lm;
 	}
-	decisions_.push_back(d);
+	trainingImages_.clear();
+	prevBow_.reset();
+	online_ = false;  // the map's vocabulary stays
 }
-

@@ -20,54 +20,50 @@
 
 namespace rasterslam
 {
+/** The paper's loop closure as a query service over the map: a BOW database of local-map
+ *  images (its place index), candidate search, and geometric verification of a keyframe's
+ *  features against a candidate local map's points. It holds no keyframe and no map. */
 class BowLoopDetector : public LoopDetector
 {
 	DEFINE_MRPT_OBJECT(BowLoopDetector, rasterslam)
 
    public:
-	std::vector<LoopConstraint> detect(
-		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) override;
-	void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph) override;
-	void loadMap(const std::string& dir) override;
-	RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster) override;
-	void transformKeyframes(const mrpt::poses::CPose3D& C) override;
+	void index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors) override;
+	std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map& map, const PoseView& poses) override;
+	RelocalizationResult relocalize(
+		const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses) override;
+	std::vector<uint8_t> savePlaceIndex() override;
+	void loadPlaceIndex(const Map& map) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override;
 
    private:
-	struct KeyframeData
+	/** Features of a query: descriptors (N x 32) and their 3D points in the query's frame. */
+	struct Query
 	{
-		mrpt::graphs::TNodeID node = 0;
-		double stamp = 0;
-		mrpt::poses::CPose3D pose;
-		cv::Mat desc;  //!< N x 32
-		std::vector<Eigen::Vector3f> pts;  //!< feature points, keyframe frame
-		std::vector<PointXYZI> cloud;  //!< non-ground points behind the image, keyframe frame
-		Keyframe::Ptr data;  //!< as the odometry gave it (saved with the map)
+		cv::Mat desc;
+		std::vector<Eigen::Vector3f> pts;
 	};
-	struct LocalMap
+	struct Verified
 	{
-		std::vector<std::size_t> keyframes;  //!< indices into kfs_
-		double newestStamp = 0;
-		std::vector<bow::Descriptor> desc;  //!< of its image, kept for online training
-		std::optional<bow::Database::EntryId> entry;
-		mrpt::img::CImage image;  //!< the rasterized local map
+		features::RigidResult fit;  //!< T maps the query frame into the local map's anchor frame
 	};
-	/** Best verified match of features (desc, pts) against the keyframes of a local map. */
-	features::RigidResult verify(
-		const cv::Mat& desc, const std::vector<Eigen::Vector3f>& pts, const LocalMap& lm,
-		uint32_t seed, std::size_t& bestKf) const;
-	void finishMap();
-	/** Logs a candidate decision; a verified, acceptable one that beats the best so far
-	 *  becomes the keyframe's loop constraint. */
-	void considerLoop(
-		const LoopDecision& d, const features::RigidResult& fit, std::size_t candidateKf,
-		const KeyframeData& query, bool acceptable, std::optional<LoopConstraint>& best,
-		std::size_t& bestDecision);
+	/** Matches the query against the local map's points (only those seen by keyframe
+	 *  `onlyKeyframe` when >= 0) and fits the rigid transform with RANSAC. */
+	Verified verify(const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe = -1) const;
+	/** The keyframe of `lm` nearest to a pose given in the anchor's frame: the one a
+	 *  constraint to that pose is shortest from. */
+	static uint64_t nearestKeyframe(const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose, const PoseView& poses);
+	/** Turns a verification into a decision (logged) and keeps the best acceptable one. */
+	void consider(
+		LoopDecision d, const Verified& v, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
+		const Map& map, const PoseView& poses, bool acceptable, std::optional<LoopConstraint>& best, std::size_t& bestDecision);
 	/** The paper's two baselines: candidates are the keyframes, or the local maps, near the
 	 *  current pose estimate; each is verified by feature matching. */
-	void searchByDistance(const KeyframeData& kd, std::vector<LoopConstraint>& out);
+	void searchByDistance(
+		const Query& q, const KeyframeInfo& kf, const Map& map, const PoseView& poses,
+		std::optional<LoopConstraint>& best, std::size_t& bestDecision);
 	enum class Search
 	{
 		Bow,
@@ -77,37 +73,28 @@ class BowLoopDetector : public LoopDetector
 	Search search_ = Search::Bow;
 	double searchRadius_m_ = 15.0;
 	void trainOnline();
+	void addEntry(uint64_t localMap, const std::vector<bow::Descriptor>& desc);
 	std::vector<bow::Descriptor> descriptorsOf(const cv::Mat& m) const;
 
 	// parameters
 	std::string vocabularyFile_;
 	int onlineMinMaps_ = 8, onlineBranching_ = 8, onlineLevels_ = 3;
-	int keyframesPerMap_ = 5;
-	raster::RasterParams mapRaster_;
-	features::OrbParams mapOrb_;
+	features::OrbParams queryOrb_;
 	double excludeRecent_s_ = 30, minScore_ = 0.3;
 	int maxCandidates_ = 5, maxResults_ = 20;
 	features::MatchParams match_;
 	features::RansacParams ransac_;
 	double pointSigma_m_ = 0.2;
 
-	// state
+	// state: the place index only
 	std::shared_ptr<bow::Vocabulary> vocab_;
 	bool online_ = true;
 	std::size_t trainedOn_ = 0;  //!< local maps the online vocabulary was trained on
 	bow::Database db_;
-	std::vector<KeyframeData> kfs_;
-	std::vector<LocalMap> maps_;
-	std::map<bow::Database::EntryId, std::size_t> entryMap_;
-	std::vector<std::size_t> open_;  //!< keyframes of the map being built
+	std::map<bow::Database::EntryId, uint64_t> entryMap_;  //!< entry -> local map id
+	/** Online vocabulary only: the image words of every local map, to train it again. */
+	std::map<uint64_t, std::vector<bow::Descriptor>> trainingImages_;
 	std::optional<bow::BowVector> prevBow_;
-	std::unique_ptr<features::OrbExtractor> orb_;
+	std::unique_ptr<features::OrbExtractor> orb_;  //!< relocalization queries
 };
 }  // namespace rasterslam
-
-namespace rasterslam::bow_loop
-{
-/** Keyframes of a map loaded with --map-in get ids past this offset: they are not nodes of
- *  the running session's graph. */
-constexpr uint64_t kPriorMapNodeOffset = uint64_t(1) << 40;
-}  // namespace rasterslam::bow_loop

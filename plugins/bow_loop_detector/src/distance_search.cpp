@@ -3,61 +3,60 @@
 
 using namespace rasterslam;
 
-void BowLoopDetector::searchByDistance(const KeyframeData& kd, std::vector<LoopConstraint>& out)
+void BowLoopDetector::searchByDistance(
+	const Query& q, const KeyframeInfo& kf, const Map& map, const PoseView& poses,
+	std::optional<LoopConstraint>& best, std::size_t& bestDecision)
 {
-	// Candidate sets: single keyframes, or the keyframes of a local map (its centre is its
-	// keyframes' mean position), older than the exclusion window and within the radius.
-	std::vector<std::pair<double, LocalMap>> cands;
-	if (search_ == Search::Keyframes)
+	// Candidates: single keyframes (the points of a local map that keyframe saw), or whole
+	// local maps (centred on their keyframes' mean position), older than the exclusion
+	// window and within the radius.
+	struct Cand
 	{
-		for (std::size_t k = 0; k < kfs_.size(); k++)
+		double dist;
+		const LocalMap* lm;
+		int keyframe;  //!< -1: the whole local map
+	};
+	std::vector<Cand> cands;
+	const Eigen::Vector3d here(kf.pose.x(), kf.pose.y(), kf.pose.z());
+	for (const auto& [id, lm] : map.localMaps)
+	{
+		if (lm->updatedStamp > kf.stamp - excludeRecent_s_) continue;
+		if (search_ == Search::Keyframes)
 		{
-			if (kfs_[k].stamp > kd.stamp - excludeRecent_s_) continue;
-			const double d = (kfs_[k].pose.translation() - kd.pose.translation()).norm();
-			if (d > searchRadius_m_) continue;
-			LocalMap one;
-			one.keyframes = {k};
-			one.newestStamp = kfs_[k].stamp;
-			cands.emplace_back(d, one);
+			for (std::size_t k = 0; k < lm->keyframes.size(); k++)
+			{
+				const auto p = poses(lm->keyframes[k]);
+				if (!p) continue;
+				// A keyframe shared by two local maps is a candidate once, in its first.
+				if (k == 0 && lm->keyframes.size() > 1 && map.localMapsOf(lm->keyframes[0]).front() != id) continue;
+				const double d = (Eigen::Vector3d(p->x(), p->y(), p->z()) - here).norm();
+				if (d <= searchRadius_m_) cands.push_back({d, lm.get(), static_cast<int>(k)});
+			}
 		}
-	}
-	else
-	{
-		for (const auto& lm : maps_)
+		else
 		{
-			if (lm.newestStamp > kd.stamp - excludeRecent_s_) continue;
 			Eigen::Vector3d c = Eigen::Vector3d::Zero();
-			for (const auto k : lm.keyframes) c += Eigen::Vector3d(kfs_[k].pose.x(), kfs_[k].pose.y(), kfs_[k].pose.z());
-			c /= static_cast<double>(lm.keyframes.size());
-			const double d = (c - Eigen::Vector3d(kd.pose.x(), kd.pose.y(), kd.pose.z())).norm();
-			if (d <= searchRadius_m_) cands.emplace_back(d, lm);
+			int n = 0;
+			for (const auto k : lm->keyframes)
+				if (const auto p = poses(k))
+				{
+					c += Eigen::Vector3d(p->x(), p->y(), p->z());
+					++n;
+				}
+			if (n == 0) continue;
+			const double d = (c / n - here).norm();
+			if (d <= searchRadius_m_) cands.push_back({d, lm.get(), -1});
 		}
 	}
-	std::sort(cands.begin(), cands.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-	std::optional<LoopConstraint> best;
-	std::size_t bestDecision = 0;
-	for (const auto& [dist, lm] : cands)
+	std::stable_sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.dist < b.dist; });
+	for (const auto& c : cands)
 	{
 		LoopDecision d;
-		d.queryStamp = kd.stamp;
-		std::size_t bestKf = 0;
-		const auto fit = verify(kd.desc, kd.pts, lm, static_cast<uint32_t>(kd.node * 31), bestKf);
-		d.inliers = fit.inliers.size();
-		d.verified = fit.ok;
+		d.queryStamp = kf.stamp;
+		const auto v = verify(q, *c.lm, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
 		// No BOW score here: the share of features that are inliers ranks the candidates.
-		d.score = kd.pts.empty() ? 0 : static_cast<double>(d.inliers) / static_cast<double>(kd.pts.size());
-		if (!fit.inliers.empty())
-		{
-			d.candidateStamp = kfs_[bestKf].stamp;
-			d.T_candidate_query = toPose(fit.T);
-		}
-		d.reason = d.verified ? "ok" : "inliers";
-		considerLoop(d, fit, bestKf, kd, true, best, bestDecision);
-	}
-	if (best)
-	{
-		decisions_[bestDecision].accepted = true;
-		out.push_back(*best);
+		d.score = q.pts.empty() ? 0 : static_cast<double>(v.fit.inliers.size()) / static_cast<double>(q.pts.size());
+		d.reason = v.fit.ok ? "ok" : "inliers";
+		consider(d, v, *c.lm, q, kf, map, poses, true, best, bestDecision);
 	}
 }
-

@@ -12,7 +12,9 @@ class LevMarqOptimizer : public Optimizer
 	DEFINE_MRPT_OBJECT(LevMarqOptimizer, rasterslam)
 
    public:
-	OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph) override;
+	/** MRPT's SPA has no robust loss: `uncertain` edges are weighted like the others. */
+	OptimizerResult optimize(
+		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override
@@ -41,7 +43,8 @@ MRPT_INITIALIZER(register_rasterslam_plugin_levmarq)
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LevMarqOptimizer));
 }
 
-OptimizerResult LevMarqOptimizer::optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph)
+OptimizerResult LevMarqOptimizer::optimize(
+	mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& /*uncertain*/)
 {
 	OptimizerResult r;
 	if (graph.edges.empty() || graph.nodes.size() < 2) return r;

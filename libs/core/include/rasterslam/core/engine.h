@@ -31,6 +31,8 @@ struct ScanRecord
 	bool late = false;  //!< --realtime: started after its due time
 	mrpt::graphs::TNodeID kfNode = 0;  //!< keyframe the scan is attached to
 	mrpt::poses::CPose3D T_kf_scan;  //!< its pose in the frame of that keyframe
+	/** The pose the scan had when it was processed (what a robot would have acted on). */
+	mrpt::poses::CPose3D onlinePose;
 	StageTimes ms;
 	std::optional<mrpt::poses::CPose3D> groundTruth;
 };
@@ -61,7 +63,14 @@ struct RunResult
 	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
 	std::size_t relocalized = 0, relocalizationFailures = 0;
 	std::size_t loopsToPriorMap = 0;  //!< loops found to a --map-in map (not graph edges yet)
-	OptimizerResult optimizer;
+	std::size_t localMaps = 0;  //!< local maps finished in this run
+	std::size_t localBaRuns = 0;  //!< local maps refined by local BA
+	std::size_t onlineOptimizations = 0;  //!< pose-graph optimizations during the run
+	double onlineOptimization_ms = 0;  //!< their total time
+	std::size_t corruptedLoops = 0;  //!< loop edges replaced by wrong ones (engine.test_corrupt_loops)
+	/** Edges that may be outliers (loop, relocalization), for the robust loss. */
+	EdgeSet uncertainEdges;
+	OptimizerResult optimizer;  //!< the final optimization
 	/** What the loop detector examined (empty without one). */
 	std::vector<LoopDecision> loopDecisions;
 	/** Empty if the input ended normally; else where and why it stopped early. */
@@ -86,6 +95,13 @@ class Engine : public mrpt::system::COutputLogger
 
 	Rasterizer::Ptr rasterizer() const { return rasterizer_; }
 	LoopDetector::Ptr loopDetector() const { return loopDetector_; }
+	MapManager::Ptr mapManager() const { return mapManager_; }
+
+	/** Loads a saved map (--map-in): the map manager reads it, the loop detector restores
+	 *  its place index from it. Needs a map_manager. */
+	void loadMap(const std::string& dir);
+	/** Saves the map with the poses of `graph` (optimized) and the place index. */
+	void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph);
 
 	/** The whole configuration with every parameter in force (defaults filled in). */
 	const mrpt::containers::yaml& configInForce() const { return inForce_; }
@@ -110,6 +126,9 @@ class Engine : public mrpt::system::COutputLogger
 	bool relocalizeOnLoss_ = true;
 	bool dropNonFinite_ = false;
 	double rawlogOdoSigma_m_ = 0.05, rawlogOdoSigma_deg_ = 0.5;
+	bool optimizeOnline_ = true;
+	int optimizeEveryKeyframes_ = 10;
+	double testCorruptLoops_ = 0;
 };
 
 /** Resident set size high-water mark of this process, MB (from /proc/self/status). */

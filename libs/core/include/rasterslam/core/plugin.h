@@ -8,10 +8,12 @@
 #include <mrpt/rtti/CObject.h>
 #include <mrpt/system/COutputLogger.h>
 #include <rasterslam/core/config.h>
-#include <rasterslam/core/keyframe.h>
+#include <rasterslam/map/map.h>
 #include <rasterslam/core/types.h>
 
+#include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -105,16 +107,48 @@ struct KeyframeInfo
 	double stamp = 0;
 	mrpt::poses::CPose3D pose;  //!< current estimate in the map frame
 	Keyframe::Ptr data;  //!< features seen there, when the odometry provides them
+	/** Tracking was lost since the previous keyframe and not recovered: the two are not
+	 *  linked by a trustworthy motion (a local map must not span them). */
+	bool afterLoss = false;
 };
 
+/** What the mapping did with a keyframe, for the engine to apply. */
+struct MappingUpdate
+{
+	/** A local map finished with this keyframe, and the ORB descriptors of its image (32
+	 *  bytes each) for the place index; they are not kept in the map. */
+	struct Finished
+	{
+		uint64_t localMap = 0;
+		std::vector<uint8_t> imageDescriptors;
+	};
+	std::vector<Finished> finished;
+	/** Local BA's refined poses of the finished map's keyframes in its anchor's frame (the
+	 *  anchor itself not listed). The engine writes them into the pose graph. */
+	uint64_t anchor = 0;
+	std::vector<std::pair<uint64_t, mrpt::poses::CPose3D>> T_anchor_kf;
+};
+
+/** Paper, "Mapping" and "Map Management": the only writer of the map model (keyframes,
+ *  local maps, the local-map graph). Poses are read from the engine's PoseView. */
 class MapManager : public Plugin
 {
 	DEFINE_VIRTUAL_MRPT_OBJECT(MapManager)
    public:
 	std::string role() const override { return "map_manager"; }
-	virtual void addKeyframe(const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) = 0;
+	virtual MappingUpdate addKeyframe(
+		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster, const PoseView& poses) = 0;
 	/** Called once at the end of a run: finish what is open. */
-	virtual void finish() {}
+	virtual MappingUpdate finish(const PoseView& poses) = 0;
+	/** An accepted loop between two keyframes (the engine made it a graph edge). */
+	virtual void loopAccepted(uint64_t /*fromKf*/, uint64_t /*toKf*/, double /*stamp*/) {}
+	virtual const Map& map() const = 0;
+	/** Replaces the map with one loaded from disk; the next session continues its ids. */
+	virtual void loadMap(const std::string& dir) = 0;
+	/** Writes the map (open local map included) with the given poses and place index. */
+	virtual void saveMap(
+		const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
+		const std::vector<uint8_t>& placeIndex) = 0;
 };
 
 /** A constraint found by a loop detector: pose of `to` in the frame of `from`. */
@@ -125,6 +159,7 @@ struct LoopConstraint
 	mrpt::math::CMatrixDouble66 information = mrpt::math::CMatrixDouble66::Identity();
 	double score = 0;
 	std::size_t inliers = 0;
+	uint64_t localMap = 0;  //!< the local map it was found in
 };
 
 /** One candidate a loop detector examined, for loops.txt. */
@@ -138,16 +173,16 @@ struct LoopDecision
 	bool verified = false;  //!< the geometric check passed
 	bool accepted = false;  //!< it became a loop edge
 	std::string reason;  //!< one word: ok, score, inliers, ...
-	mrpt::poses::CPose3D T_candidate_query;
+	mrpt::poses::CPose3D T_candidate_query;  //!< query in the matched keyframe's frame
 };
 
-/** Where a scan lies in a saved map, found with no pose prior. */
+/** Where a scan lies in a map, found with no pose prior. */
 struct RelocalizationResult
 {
 	bool found = false;
 	std::string reason;  //!< one word: ok, features, candidates, inliers
 	uint64_t localMap = 0;
-	uint64_t keyframe = 0;  //!< node id of the matched keyframe
+	uint64_t keyframe = 0;  //!< id of the matched keyframe (most inliers among the map's)
 	double keyframeStamp = -1;
 	double score = 0;
 	std::size_t inliers = 0;
@@ -155,24 +190,25 @@ struct RelocalizationResult
 	mrpt::poses::CPose3D keyframePose;  //!< of the matched keyframe, in the map frame
 };
 
+/** Paper, "BOW Database" and "Loop Closure": a query service over the map. It keeps only
+ *  its place index (words of the local-map images); keyframes and local maps are read from
+ *  the map the engine passes. */
 class LoopDetector : public Plugin
 {
 	DEFINE_VIRTUAL_MRPT_OBJECT(LoopDetector)
    public:
 	std::string role() const override { return "loop_detector"; }
+	/** A finished local map enters the place index. */
+	virtual void index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors) = 0;
 	virtual std::vector<LoopConstraint> detect(
-		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster) = 0;
-
-	/** Saves what relocalization needs into `dir` (the open local map is finished first);
-	 *  keyframe poses are taken from `graph` (optimized). Not every detector can. */
-	virtual void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph);
-	/** Loads a map written by saveMap(); throws naming the file on damage. */
-	virtual void loadMap(const std::string& dir);
-	/** The engine moved this session's poses into a prior map's frame (pose = C + pose):
-	 *  move the keyframes the detector holds of this session alike. */
-	virtual void transformKeyframes(const mrpt::poses::CPose3D& /*C*/) {}
-	/** Locates a scan in the loaded (or built) map with no pose prior. */
-	virtual RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster);
+		const KeyframeInfo& kf, const Map& map, const PoseView& poses) = 0;
+	/** Locates a scan in the map with no pose prior. */
+	virtual RelocalizationResult relocalize(
+		const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses) = 0;
+	/** The place index as bytes to save with the map, and the class name that reads them. */
+	virtual std::vector<uint8_t> savePlaceIndex() = 0;
+	/** Restores a place index saved with `map` (after the map manager loaded it). */
+	virtual void loadPlaceIndex(const Map& map) = 0;
 	/** Every candidate examined so far, in order. */
 	const std::vector<LoopDecision>& decisions() const { return decisions_; }
 
@@ -180,12 +216,19 @@ class LoopDetector : public Plugin
 	std::vector<LoopDecision> decisions_;
 };
 
+/** Edges (from, to) whose constraint may be wrong: loop and relocalization edges. An
+ *  optimizer with a robust loss applies it to these; odometry edges are trusted. */
+using EdgeSet = std::set<std::pair<mrpt::graphs::TNodeID, mrpt::graphs::TNodeID>>;
+
 struct OptimizerResult
 {
 	bool ran = false;
 	std::size_t iterations = 0;
-	double initialError = 0, finalError = 0;
+	double initialError = 0, finalError = 0;  //!< sum of squared whitened residuals (chi2)
 	double time_ms = 0;
+	/** For each uncertain edge, the weight the robust loss gave it at the solution (1: fully
+	 *  trusted, near 0: rejected). Empty when the optimizer has no robust loss. */
+	std::map<std::pair<mrpt::graphs::TNodeID, mrpt::graphs::TNodeID>, double> edgeWeights;
 };
 
 class Optimizer : public Plugin
@@ -193,8 +236,10 @@ class Optimizer : public Plugin
 	DEFINE_VIRTUAL_MRPT_OBJECT(Optimizer)
    public:
 	std::string role() const override { return "optimizer"; }
-	/** Optimizes the node poses of `graph` in place; the root node stays fixed. */
-	virtual OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph) = 0;
+	/** Optimizes the node poses of `graph` in place; the root node stays fixed. `uncertain`
+	 *  names the edges that may be outliers (see EdgeSet). */
+	virtual OptimizerResult optimize(
+		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain = {}) = 0;
 };
 
 }  // namespace rasterslam

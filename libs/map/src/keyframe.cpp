@@ -1,23 +1,18 @@
 #include <mrpt/core/initializer.h>
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/stl_serialization.h>
-#include <rasterslam/core/keyframe.h>
+#include <rasterslam/map/keyframe.h>
 
 using namespace rasterslam;
 
 IMPLEMENTS_SERIALIZABLE(Keyframe, mrpt::serialization::CSerializable, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_core_classes)
-{
-	mrpt::rtti::registerClass(CLASS_ID(rasterslam::Keyframe));
-}
-
-uint8_t Keyframe::serializeGetVersion() const { return 0; }
+uint8_t Keyframe::serializeGetVersion() const { return 1; }
 
 void Keyframe::serializeTo(mrpt::serialization::CArchive& out) const
 {
-	out << id << scanIndex << stamp << pose << u << v << angle << response << octave << xyz
-		<< descriptors;
+	out << id << session << scanIndex << stamp << pose << u << v << angle << response << octave
+		<< xyz << descriptors;
 }
 
 void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -25,7 +20,12 @@ void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	switch (version)
 	{
 		case 0:
-			in >> id >> scanIndex >> stamp >> pose >> u >> v >> angle >> response >> octave >> xyz >>
+		case 1:
+			in >> id;
+			if (version >= 1) in >> session;
+			else
+				session = 0;
+			in >> scanIndex >> stamp >> pose >> u >> v >> angle >> response >> octave >> xyz >>
 				descriptors;
 			break;
 		default: MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
@@ -38,7 +38,22 @@ void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 
 bool Keyframe::operator==(const Keyframe& o) const
 {
-	return id == o.id && scanIndex == o.scanIndex && stamp == o.stamp && pose == o.pose && u == o.u &&
+	return id == o.id && session == o.session && scanIndex == o.scanIndex && stamp == o.stamp && pose == o.pose && u == o.u &&
 		v == o.v && angle == o.angle && response == o.response && octave == o.octave && xyz == o.xyz &&
 		descriptors == o.descriptors;
+}
+
+void Keyframe::releaseFeatures()
+{
+	for (auto* f : {&u, &v, &angle, &response})
+	{
+		f->clear();
+		f->shrink_to_fit();
+	}
+	octave.clear();
+	octave.shrink_to_fit();
+	xyz.clear();
+	xyz.shrink_to_fit();
+	descriptors.clear();
+	descriptors.shrink_to_fit();
 }

@@ -18,10 +18,13 @@ class Keyframe : public mrpt::serialization::CSerializable
 	DEFINE_SERIALIZABLE(Keyframe, rasterslam)
 
    public:
-	uint64_t id = 0;  //!< pose-graph node id
+	uint64_t id = 0;  //!< pose-graph node id, unique across the sessions of a map
+	uint32_t session = 0;  //!< the session (run) that made it
 	uint64_t scanIndex = 0;
 	double stamp = 0;
-	mrpt::poses::CPose3D pose;  //!< in the map frame
+	/** In the map frame as saved. While running, the engine's pose graph owns the pose:
+	 *  read it from there (PoseView), not from here. */
+	mrpt::poses::CPose3D pose;
 
 	std::vector<float> u, v, angle, response;  //!< one entry a feature
 	std::vector<uint8_t> octave;
@@ -29,6 +32,8 @@ class Keyframe : public mrpt::serialization::CSerializable
 	std::vector<uint8_t> descriptors;  //!< 32 bytes a feature
 
 	std::size_t size() const { return u.size(); }
+	/** Drops the features (the keyframe's local maps hold them as map points). */
+	void releaseFeatures();
 	bool operator==(const Keyframe& o) const;
 };
 

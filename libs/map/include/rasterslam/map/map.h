@@ -1,0 +1,63 @@
+// The whole map: keyframes, local maps and their graph, and the map file.
+#pragma once
+
+#include <mrpt/poses/CPose3D.h>
+#include <rasterslam/map/keyframe.h>
+#include <rasterslam/map/local_map.h>
+
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rasterslam
+{
+/** Keyframe poses as their owners hold them: `live` are the nodes of the running session's
+ *  pose graph (the optimizer writes them), `prior` the keyframes of a loaded map that are
+ *  not nodes of it. Readers never keep copies: they look poses up when they need them. */
+struct PoseView
+{
+	std::function<const mrpt::poses::CPose3D*(uint64_t)> live;
+	const std::map<uint64_t, mrpt::poses::CPose3D>* prior = nullptr;
+
+	std::optional<mrpt::poses::CPose3D> operator()(uint64_t keyframe) const;
+	/** Throws naming the keyframe when it has no pose. */
+	mrpt::poses::CPose3D at(uint64_t keyframe) const;
+};
+
+/** The map model. The map manager is its only writer; the loop detector and the engine read
+ *  it through a const reference. */
+class Map
+{
+   public:
+	std::map<uint64_t, Keyframe::Ptr> keyframes;
+	std::map<uint64_t, LocalMap::Ptr> localMaps;
+	LocalMapGraph graph;
+	/** Poses of the keyframes loaded from a saved map (fixed in this session). */
+	std::map<uint64_t, mrpt::poses::CPose3D> priorPoses;
+	/** The loop detector's place index, saved with the map and opaque to it (MRPT archive
+	 *  bytes), with the class that wrote it. */
+	std::string placeIndexClass;
+	std::vector<uint8_t> placeIndex;
+	/** Sessions stored in the map (the next session's id is this count). */
+	uint32_t sessions = 0;
+
+	uint64_t nextKeyframeId() const;
+	uint64_t nextLocalMapId() const;
+	/** The local maps that hold a keyframe (one, or two where consecutive ones overlap). */
+	std::vector<uint64_t> localMapsOf(uint64_t keyframe) const;
+	/** Bytes held in memory by keyframes and local maps. */
+	std::size_t memoryBytes() const;
+};
+
+/** Writes the map as `dir/map.rsmap` (gzip MRPT archive: magic, version, keyframes with the
+ *  poses `poses` gives, local maps, graph, place index) and `dir/localmaps/NNNN.png`, each
+ *  first under a temporary name. */
+void saveMap(const Map& map, const PoseView& poses, const std::string& dir);
+/** Reads a map written by saveMap(); throws naming the file and what is wrong. Keyframe
+ *  poses go to `priorPoses`. */
+Map loadMap(const std::string& dir);
+std::string mapFilePath(const std::string& dir);
+
+}  // namespace rasterslam

@@ -1,0 +1,175 @@
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/serialization/CArchive.h>
+#include <mrpt/serialization/stl_serialization.h>
+#include <rasterslam/map/map.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+namespace fs = std::filesystem;
+
+namespace rasterslam
+{
+namespace
+{
+constexpr uint32_t kMapMagic = 0x504d5352;  // "RSMP"
+// Version 0 (the loop detector's own file, before the map model) is not read: its keyframe
+// grouping cannot be turned into local maps with points.
+constexpr uint8_t kMapVersion = 1;
+}  // namespace
+
+std::optional<mrpt::poses::CPose3D> PoseView::operator()(uint64_t keyframe) const
+{
+	if (live)
+		if (const auto* p = live(keyframe)) return *p;
+	if (prior)
+		if (const auto it = prior->find(keyframe); it != prior->end()) return it->second;
+	return std::nullopt;
+}
+
+mrpt::poses::CPose3D PoseView::at(uint64_t keyframe) const
+{
+	const auto p = (*this)(keyframe);
+	if (!p) throw std::runtime_error("keyframe " + std::to_string(keyframe) + " has no pose");
+	return *p;
+}
+
+uint64_t Map::nextKeyframeId() const { return keyframes.empty() ? 0 : keyframes.rbegin()->first + 1; }
+uint64_t Map::nextLocalMapId() const { return localMaps.empty() ? 0 : localMaps.rbegin()->first + 1; }
+
+std::vector<uint64_t> Map::localMapsOf(uint64_t keyframe) const
+{
+	std::vector<uint64_t> out;
+	for (const auto& [id, lm] : localMaps)
+		if (lm->keyframeIndex(keyframe) >= 0) out.push_back(id);
+	return out;
+}
+
+std::size_t Map::memoryBytes() const
+{
+	std::size_t b = 0;
+	for (const auto& [id, k] : keyframes)
+		b += sizeof(Keyframe) + k->xyz.capacity() * 4 + k->descriptors.capacity() +
+			k->u.capacity() * 16 + k->octave.capacity();
+	for (const auto& [id, lm] : localMaps) b += lm->memoryBytes();
+	return b + placeIndex.capacity();
+}
+
+std::string mapFilePath(const std::string& dir) { return (fs::path(dir) / "map.rsmap").string(); }
+
+void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
+{
+	if (map.localMaps.empty()) throw std::runtime_error("the map has no local map: there is nothing to save");
+	fs::create_directories(dir);
+	const auto path = mapFilePath(dir);
+	const auto tmp = path + ".tmp-" + std::to_string(::getpid());
+	try
+	{
+		mrpt::io::CFileGZOutputStream f;
+		if (!f.open(tmp, 1)) throw std::runtime_error("cannot write map '" + path + "'");
+		auto a = mrpt::serialization::archiveFrom(f);
+		a << kMapMagic << kMapVersion << map.sessions;
+		a << static_cast<uint64_t>(map.keyframes.size());
+		for (const auto& [id, k] : map.keyframes)
+		{
+			Keyframe out = *k;
+			out.pose = poses.at(id);
+			a << out;
+		}
+		a << static_cast<uint64_t>(map.localMaps.size());
+		for (const auto& [id, lm] : map.localMaps) a << *lm;
+		a << map.graph << map.placeIndexClass << map.placeIndex;
+	}
+	catch (...)
+	{
+		std::error_code ec;
+		fs::remove(tmp, ec);
+		throw;
+	}
+	// The local-map images, for a look: a fresh folder replaces the old one whole.
+	const auto imgDir = fs::path(dir) / "localmaps";
+	const auto tmpDir = fs::path(dir) / (".localmaps.tmp-" + std::to_string(::getpid()));
+	fs::remove_all(tmpDir);
+	fs::create_directories(tmpDir);
+	for (const auto& [id, lm] : map.localMaps)
+	{
+		if (lm->imagePng.empty()) continue;
+		const auto name = mrpt::format("%04llu.png", static_cast<unsigned long long>(id));
+		std::ofstream o(tmpDir / name, std::ios::binary);
+		o.write(reinterpret_cast<const char*>(lm->imagePng.data()), static_cast<std::streamsize>(lm->imagePng.size()));
+		if (!o)
+		{
+			fs::remove_all(tmpDir);
+			fs::remove(tmp);
+			throw std::runtime_error("cannot write '" + (imgDir / name).string() + "'");
+		}
+	}
+	fs::rename(tmp, path);
+	fs::remove_all(imgDir);
+	fs::rename(tmpDir, imgDir);
+}
+
+Map loadMap(const std::string& dir)
+{
+	const auto path = mapFilePath(dir);
+	std::error_code ec;
+	if (!fs::exists(path, ec)) throw std::runtime_error("map '" + path + "' does not exist");
+	if (!fs::is_regular_file(path, ec)) throw std::runtime_error("map '" + path + "' is not a file");
+	Map map;
+	try
+	{
+		mrpt::io::CFileGZInputStream f(path);
+		auto a = mrpt::serialization::archiveFrom(f);
+		uint32_t magic = 0;
+		uint8_t version = 0;
+		a >> magic >> version;
+		if (magic != kMapMagic) throw std::runtime_error("not a rasterslam map");
+		if (version == 0)
+			throw std::runtime_error("map version 0 (written before the map manager): build the map again");
+		if (version != kMapVersion) throw std::runtime_error("unknown map version " + std::to_string(version));
+		a >> map.sessions;
+		uint64_t nk = 0;
+		a >> nk;
+		for (uint64_t i = 0; i < nk; i++)
+		{
+			auto k = std::make_shared<Keyframe>();
+			a >> *k;
+			if (map.keyframes.count(k->id)) throw std::runtime_error("keyframe id " + std::to_string(k->id) + " twice");
+			map.priorPoses[k->id] = k->pose;
+			map.keyframes[k->id] = k;
+		}
+		uint64_t nm = 0;
+		a >> nm;
+		for (uint64_t i = 0; i < nm; i++)
+		{
+			auto lm = std::make_shared<LocalMap>();
+			a >> *lm;
+			for (const auto k : lm->keyframes)
+				if (!map.keyframes.count(k))
+					throw std::runtime_error(
+						"local map " + std::to_string(lm->id) + " refers to missing keyframe " + std::to_string(k));
+			if (map.localMaps.count(lm->id))
+				throw std::runtime_error("local map id " + std::to_string(lm->id) + " twice");
+			map.localMaps[lm->id] = lm;
+		}
+		a >> map.graph >> map.placeIndexClass >> map.placeIndex;
+		for (const auto& e : map.graph.edges)
+			if (!map.localMaps.count(e.from) || !map.localMaps.count(e.to))
+				throw std::runtime_error("the local-map graph refers to a missing local map");
+	}
+	catch (const std::exception& e)
+	{
+		std::string what = e.what();
+		if (const auto pos = what.find("Message:"); pos != std::string::npos)
+			what = what.substr(pos + 9, what.find('\n', pos) - pos - 9);
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos) what.resize(pos);
+		while (!what.empty() && (what.back() == '\n' || what.back() == ' ')) what.pop_back();
+		throw std::runtime_error("cannot read map '" + path + "': " + what);
+	}
+	return map;
+}
+
+}  // namespace rasterslam

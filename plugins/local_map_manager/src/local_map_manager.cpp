@@ -1,0 +1,312 @@
+// The paper's mapping thread ("Mapping", "Map Management"): keyframes grow a local map up to
+// a size threshold; a finished local map is refined by local BA (eqs. 3-4), its points are
+// rasterized into the local-map image (eq. 1 / bird's-eye view) and its image's ORB words go
+// to the place index. Consecutive local maps share a keyframe, so the transition is smooth.
+#include <mrpt/core/initializer.h>
+#include <rasterslam/core/plugin.h>
+#include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/mapping/local_ba.h>
+#include <rasterslam/raster/elevation_image.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+namespace rasterslam
+{
+class LocalMapManager : public MapManager
+{
+	DEFINE_MRPT_OBJECT(LocalMapManager, rasterslam)
+
+   public:
+	MappingUpdate addKeyframe(
+		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster, const PoseView& poses) override;
+	MappingUpdate finish(const PoseView& poses) override;
+	void loopAccepted(uint64_t fromKf, uint64_t toKf, double stamp) override;
+	const Map& map() const override { return map_; }
+	void loadMap(const std::string& dir) override;
+	void saveMap(
+		const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
+		const std::vector<uint8_t>& placeIndex) override;
+
+   protected:
+	void initializeImpl(ParamReader& p) override;
+
+   private:
+	/** Finishes the open local map; `continues`: the next one starts from its last keyframe. */
+	void finishOpen(const PoseView& poses, MappingUpdate& up, bool continues);
+	/** Drops what a keyframe no longer needs once all its local maps are finished. */
+	void release(uint64_t kf);
+
+	// parameters
+	int keyframesPerMap_ = 5;
+	double maxExtent_m_ = 40;
+	bool overlap_ = true;
+	bool localBa_ = true;
+	mapping::LocalBaParams ba_;
+	raster::RasterParams mapRaster_;
+	features::OrbParams mapOrb_;
+
+	// state
+	Map map_;
+	uint32_t session_ = 0;
+	std::vector<uint64_t> open_;  //!< keyframes of the local map being built
+	bool openSharesFirst_ = false;  //!< open_[0] is the last keyframe of the previous local map
+	std::optional<uint64_t> lastLocalMap_;  //!< the previous local map, when the open one continues it
+	std::map<uint64_t, std::vector<PointXYZI>> clouds_;  //!< non-ground points of open keyframes
+	std::vector<uint64_t> pendingLoops_;  //!< local maps a keyframe of the open map closed a loop with
+	std::unique_ptr<features::OrbExtractor> orb_;
+};
+}  // namespace rasterslam
+
+using namespace rasterslam;
+
+IMPLEMENTS_MRPT_OBJECT(LocalMapManager, MapManager, rasterslam)
+
+MRPT_INITIALIZER(register_rasterslam_plugin_local_map_manager)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LocalMapManager));
+}
+
+void LocalMapManager::initializeImpl(ParamReader& p)
+{
+	keyframesPerMap_ = p.getInt("keyframes_per_map", keyframesPerMap_);
+	maxExtent_m_ = p.getDouble("max_extent_m", maxExtent_m_);
+	overlap_ = p.getBool("overlap", overlap_);
+	localBa_ = p.getBool("local_ba", localBa_);
+	ba_.maxIterations = p.getInt("ba_max_iterations", ba_.maxIterations);
+	ba_.sigmaXY_m = p.getDouble("ba_sigma_xy_m", ba_.sigmaXY_m);
+	ba_.sigmaZ_m = p.getDouble("ba_sigma_z_m", ba_.sigmaZ_m);
+	ba_.huber = p.getDouble("ba_huber", ba_.huber);
+	ba_.gate_m = p.getDouble("ba_gate_m", ba_.gate_m);
+	ba_.maxHamming = p.getInt("ba_max_hamming", ba_.maxHamming);
+	mapRaster_.resolution_m = p.getDouble("map_resolution_m", 0.2);
+	mapRaster_.maxRange_m = p.getDouble("map_extent_m", 60.0);
+	mapRaster_.minRange_m = 0;
+	mapRaster_.removeGround = false;  // the keyframe clouds hold no ground already
+	mapRaster_.belowGround_m = 1e6;
+	mapOrb_.numFeatures = p.getInt("map_features", 3000);
+	mapOrb_.levels = 3;
+	if (keyframesPerMap_ < 1 || keyframesPerMap_ > static_cast<int>(LocalMap::kMaxKeyframes))
+		throw ConfigError(p.context() + ".keyframes_per_map: must be in 1..32");
+	if (!(maxExtent_m_ > 0)) throw ConfigError(p.context() + ".max_extent_m: must be > 0");
+	if (ba_.maxIterations < 1) throw ConfigError(p.context() + ".ba_max_iterations: must be >= 1");
+	if (!(ba_.sigmaXY_m > 0) || !(ba_.sigmaZ_m > 0) || !(ba_.huber > 0) || !(ba_.gate_m > 0))
+		throw ConfigError(p.context() + ": ba_sigma_xy_m, ba_sigma_z_m, ba_huber and ba_gate_m must be > 0");
+	if (!(mapRaster_.resolution_m > 0) || !(mapRaster_.maxRange_m > 0))
+		throw ConfigError(p.context() + ": map_resolution_m and map_extent_m must be > 0");
+	orb_ = std::make_unique<features::OrbExtractor>(mapOrb_);
+	map_ = Map();
+	map_.sessions = 1;
+	session_ = 0;
+	open_.clear();
+	clouds_.clear();
+	pendingLoops_.clear();
+	lastLocalMap_.reset();
+	openSharesFirst_ = false;
+}
+
+MappingUpdate LocalMapManager::addKeyframe(
+	const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster, const PoseView& poses)
+{
+	if (!kf.data)
+		throw std::runtime_error(
+			"rasterslam::LocalMapManager needs keyframes with features: use an odometry that provides them (e.g. "
+			"rasterslam::OrbOdometry)");
+	if (map_.keyframes.count(kf.node))
+		throw std::runtime_error("keyframe id " + std::to_string(kf.node) + " is already in the map");
+	auto k = std::make_shared<Keyframe>(*kf.data);
+	k->id = kf.node;
+	k->session = session_;
+	k->scanIndex = kf.scanIndex;
+	k->stamp = kf.stamp;
+	map_.keyframes[k->id] = k;
+	auto& cloud = clouds_[k->id];
+	if (raster)
+		for (const auto idx : raster->pixelToPoint)
+			if (idx >= 0) cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
+
+	MappingUpdate up;
+	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.
+	if (kf.afterLoss && !open_.empty()) finishOpen(poses, up, false);
+	open_.push_back(k->id);
+	bool full = static_cast<int>(open_.size()) >= keyframesPerMap_;
+	if (!full && open_.size() > 1)
+	{
+		const auto d = poses.at(k->id).distanceTo(poses.at(open_.front()));
+		full = d > maxExtent_m_;
+	}
+	if (full) finishOpen(poses, up, true);
+	return up;
+}
+
+MappingUpdate LocalMapManager::finish(const PoseView& poses)
+{
+	MappingUpdate up;
+	// Only the keyframe shared with the previous local map is open: nothing new to map.
+	if (!(open_.size() == 1 && openSharesFirst_) && !open_.empty()) finishOpen(poses, up, false);
+	for (const auto k : open_) release(k);
+	open_.clear();
+	return up;
+}
+
+void LocalMapManager::loopAccepted(uint64_t fromKf, uint64_t /*toKf*/, double /*stamp*/)
+{
+	// The query keyframe is in the open local map: the edge is made when that map is done.
+	const auto maps = map_.localMapsOf(fromKf);
+	if (!maps.empty()) pendingLoops_.push_back(maps.front());
+}
+
+void LocalMapManager::release(uint64_t kf)
+{
+	clouds_.erase(kf);
+	if (const auto it = map_.keyframes.find(kf); it != map_.keyframes.end()) it->second->releaseFeatures();
+}
+
+void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool continues)
+{
+	const std::vector<uint64_t> ids = open_;
+	const auto anchorPose = poses.at(ids.front());
+	std::vector<mapping::BaFrame> frames;
+	for (const auto id : ids)
+	{
+		const auto& k = *map_.keyframes.at(id);
+		mapping::BaFrame f;
+		f.descriptors = k.descriptors.data();
+		f.xyz = k.xyz.data();
+		f.n = k.size();
+		f.T_anchor_frame = toIsometry(poses.at(id) - anchorPose);
+		frames.push_back(f);
+	}
+	auto lm = std::make_shared<LocalMap>();
+	lm->id = map_.nextLocalMapId();
+	lm->session = session_;
+	lm->keyframes = ids;
+	lm->createdStamp = map_.keyframes.at(ids.front())->stamp;
+	lm->updatedStamp = map_.keyframes.at(ids.back())->stamp;
+
+	std::vector<Eigen::Isometry3d> T(frames.size());
+	for (std::size_t i = 0; i < frames.size(); i++) T[i] = frames[i].T_anchor_frame;
+	mapping::LocalBaResult ba;
+	if (localBa_ && frames.size() >= 2) ba = mapping::localBundleAdjustment(frames, ba_);
+	if (ba.ran)
+	{
+		T = ba.T_anchor_frame;
+		up.anchor = ids.front();
+		for (std::size_t i = 1; i < ids.size(); i++) up.T_anchor_kf.emplace_back(ids[i], toPose(T[i]));
+		lm->baTracks = static_cast<uint32_t>(ba.tracks);
+		lm->baInitialRms_m = static_cast<float>(ba.initialRms_m);
+		lm->baFinalRms_m = static_cast<float>(ba.finalRms_m);
+		for (const auto& p : ba.points) lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
+		lm->descriptors = std::move(ba.descriptors);
+		lm->observers = std::move(ba.observers);
+	}
+	else
+	{
+		// No BA (disabled, or one keyframe): every feature is a point of its own.
+		for (std::size_t i = 0; i < frames.size(); i++)
+			for (std::size_t j = 0; j < frames[i].n; j++)
+			{
+				const Eigen::Vector3f p =
+					(T[i] * Eigen::Vector3d(frames[i].xyz[3 * j], frames[i].xyz[3 * j + 1], frames[i].xyz[3 * j + 2]))
+						.cast<float>();
+				lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
+				lm->descriptors.insert(
+					lm->descriptors.end(), frames[i].descriptors + 32 * j, frames[i].descriptors + 32 * (j + 1));
+				lm->observers.push_back(1u << i);
+			}
+	}
+
+	// The local-map image: the keyframes' non-ground points in the anchor frame.
+	std::vector<PointXYZI> pts;
+	for (std::size_t i = 0; i < ids.size(); i++)
+	{
+		const auto it = clouds_.find(ids[i]);
+		if (it == clouds_.end()) continue;
+		const Eigen::Isometry3f Tf = T[i].cast<float>();
+		for (const auto& q : it->second)
+		{
+			const Eigen::Vector3f w = Tf * Eigen::Vector3f(q.x, q.y, q.z);
+			pts.push_back({w.x(), w.y(), w.z(), q.intensity});
+		}
+	}
+	RasterFrame img;
+	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat desc;
+	orb_->extract(img.image.asCvMatRef(), kps, desc);
+	MappingUpdate::Finished fin;
+	fin.localMap = lm->id;
+	if (desc.rows > 0) fin.imageDescriptors.assign(desc.datastart, desc.dataend);
+	if (!cv::imencode(".png", img.image.asCvMatRef(), lm->imagePng))
+		throw std::runtime_error("cannot encode the image of local map " + std::to_string(lm->id));
+	lm->imageResolution_m = static_cast<float>(mapRaster_.resolution_m);
+	lm->imageExtent_m = static_cast<float>(mapRaster_.maxRange_m);
+
+	// Paper, Algorithm 1: the local map enters the local-map graph with its labels.
+	if (lastLocalMap_)
+		map_.graph.add(*lastLocalMap_, lm->id, LocalMapGraph::EdgeKind::Sequential, lm->createdStamp);
+	for (const auto other : pendingLoops_)
+		map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Loop, lm->updatedStamp);
+	pendingLoops_.clear();
+	map_.localMaps[lm->id] = lm;
+	up.finished.push_back(std::move(fin));
+	MRPT_LOG_DEBUG_FMT(
+		"local map %llu: %zu keyframes, %zu points, BA %s (%zu tracks, rms %.3f -> %.3f m)",
+		static_cast<unsigned long long>(lm->id), ids.size(), lm->points(), ba.ran ? "ran" : "skipped", ba.tracks,
+		ba.initialRms_m, ba.finalRms_m);
+
+	// Consecutive local maps share the last keyframe: it stays open, with its features.
+	open_.clear();
+	if (continues && overlap_ && ids.size() > 1)
+	{
+		open_.push_back(ids.back());
+		openSharesFirst_ = true;
+		lastLocalMap_ = lm->id;
+		for (std::size_t i = 0; i + 1 < ids.size(); i++) release(ids[i]);
+	}
+	else
+	{
+		openSharesFirst_ = false;
+		if (continues) lastLocalMap_ = lm->id;
+		else
+			lastLocalMap_.reset();
+		for (const auto id : ids) release(id);
+	}
+}
+
+void LocalMapManager::loadMap(const std::string& dir)
+{
+	map_ = rasterslam::loadMap(dir);
+	session_ = map_.sessions;
+	map_.sessions = session_ + 1;
+	open_.clear();
+	clouds_.clear();
+	pendingLoops_.clear();
+	lastLocalMap_.reset();
+	openSharesFirst_ = false;
+	MRPT_LOG_INFO_FMT(
+		"map %s: %zu sessions, %zu keyframes, %zu local maps", dir.c_str(), static_cast<std::size_t>(session_),
+		map_.keyframes.size(), map_.localMaps.size());
+}
+
+void LocalMapManager::saveMap(
+	const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
+	const std::vector<uint8_t>& placeIndex)
+{
+	map_.placeIndexClass = placeIndexClass;
+	map_.placeIndex = placeIndex;
+	try
+	{
+		rasterslam::saveMap(map_, poses, dir);
+	}
+	catch (...)
+	{
+		map_.placeIndex.clear();
+		throw;
+	}
+	map_.placeIndex.clear();
+	map_.placeIndex.shrink_to_fit();
+	MRPT_LOG_INFO_FMT(
+		"map saved to %s: %zu keyframes, %zu local maps", mapFilePath(dir).c_str(), map_.keyframes.size(),
+		map_.localMaps.size());
+}

@@ -1,0 +1,219 @@
+// The map model (libs/map): every class through MRPT serialization with its version check,
+// and the map file: a round trip with poses from a PoseView, damage and old versions refused
+// with the file named.
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/io/CMemoryStream.h>
+#include <mrpt/serialization/CArchive.h>
+#include <rasterslam/map/map.h>
+
+#include <fstream>
+#include <random>
+
+#include "test_support.h"
+
+using namespace rasterslam;
+namespace fs = std::filesystem;
+
+namespace
+{
+LocalMap::Ptr makeLocalMap(uint64_t id, std::vector<uint64_t> kfs, std::mt19937& rng)
+{
+	auto lm = std::make_shared<LocalMap>();
+	lm->id = id;
+	lm->session = 2;
+	lm->keyframes = std::move(kfs);
+	lm->createdStamp = 100.5 + static_cast<double>(id);
+	lm->updatedStamp = lm->createdStamp + 2.25;
+	lm->online = id % 2 == 0;
+	std::uniform_real_distribution<float> u(-30, 30);
+	for (int i = 0; i < 50; i++)
+	{
+		lm->xyz.insert(lm->xyz.end(), {u(rng), u(rng), u(rng) / 10});
+		for (int b = 0; b < 32; b++) lm->descriptors.push_back(static_cast<uint8_t>(rng()));
+		lm->observers.push_back(1u + (static_cast<uint32_t>(rng()) & 6u));
+	}
+	lm->imagePng = {0x89, 'P', 'N', 'G', 1, 2, 3};
+	lm->imageResolution_m = 0.2f;
+	lm->imageExtent_m = 60;
+	lm->baTracks = 17;
+	lm->baInitialRms_m = 0.12f;
+	lm->baFinalRms_m = 0.05f;
+	return lm;
+}
+
+template <class T>
+std::shared_ptr<T> roundTrip(const T& obj, mrpt::io::CMemoryStream& buf)
+{
+	auto a = mrpt::serialization::archiveFrom(buf);
+	a << obj;
+	buf.Seek(0);
+	return std::dynamic_pointer_cast<T>(a.ReadObject());
+}
+
+/** Sets the version byte after the class name in MRPT's object header. */
+void setVersion(mrpt::io::CMemoryStream& buf, const std::string& cls, uint8_t expected, uint8_t v)
+{
+	auto* bytes = static_cast<uint8_t*>(buf.getRawBufferData());
+	const std::string raw(reinterpret_cast<const char*>(bytes), buf.getTotalBytesCount());
+	const auto at = raw.find(cls);
+	ASSERT_NE(at, std::string::npos);
+	ASSERT_EQ(bytes[at + cls.size()], expected);
+	bytes[at + cls.size()] = v;
+	buf.Seek(0);
+}
+}  // namespace
+
+TEST(MapModel, LocalMapRoundTripAndVersion)
+{
+	std::mt19937 rng(7);
+	const auto lm = makeLocalMap(4, {10, 11, 12}, rng);
+	mrpt::io::CMemoryStream buf;
+	const auto back = roundTrip(*lm, buf);
+	ASSERT_TRUE(back);
+	EXPECT_TRUE(*back == *lm);
+	EXPECT_EQ(back->points(), 50u);
+	EXPECT_EQ(back->anchor(), 10u);
+	EXPECT_EQ(back->keyframeIndex(12), 2);
+	EXPECT_EQ(back->keyframeIndex(13), -1);
+	LocalMap other = *lm;
+	other.observers[3] ^= 8;
+	EXPECT_FALSE(other == *lm);  // operator== looks at the observers
+
+	setVersion(buf, "rasterslam::LocalMap", 0, 7);
+	auto a = mrpt::serialization::archiveFrom(buf);
+	EXPECT_ANY_THROW(a.ReadObject());
+
+	// Inconsistent arrays and an empty keyframe label are refused on reading.
+	LocalMap bad = *lm;
+	bad.descriptors.pop_back();
+	mrpt::io::CMemoryStream b2;
+	EXPECT_ANY_THROW(roundTrip(bad, b2));
+	LocalMap bad2 = *lm;
+	bad2.keyframes.clear();
+	mrpt::io::CMemoryStream b3;
+	EXPECT_ANY_THROW(roundTrip(bad2, b3));
+}
+
+TEST(MapModel, LocalMapGraphRoundTripAndVersion)
+{
+	LocalMapGraph g;
+	g.add(0, 1, LocalMapGraph::EdgeKind::Sequential, 10);
+	g.add(1, 2, LocalMapGraph::EdgeKind::Sequential, 12);
+	g.add(0, 2, LocalMapGraph::EdgeKind::Loop, 12.5);
+	g.add(2, 3, LocalMapGraph::EdgeKind::Relocalization, 20);
+	mrpt::io::CMemoryStream buf;
+	const auto back = roundTrip(g, buf);
+	ASSERT_TRUE(back);
+	EXPECT_TRUE(*back == g);
+	EXPECT_EQ(back->count(LocalMapGraph::EdgeKind::Sequential), 2u);
+	EXPECT_EQ(back->count(LocalMapGraph::EdgeKind::Loop), 1u);
+	EXPECT_EQ(back->edges[3].kind, LocalMapGraph::EdgeKind::Relocalization);
+	setVersion(buf, "rasterslam::LocalMapGraph", 0, 1);
+	auto a = mrpt::serialization::archiveFrom(buf);
+	EXPECT_ANY_THROW(a.ReadObject());
+}
+
+TEST(MapModel, PoseViewPrefersTheLiveGraph)
+{
+	std::map<uint64_t, mrpt::poses::CPose3D> live{{5, mrpt::poses::CPose3D(1, 0, 0, 0, 0, 0)}};
+	std::map<uint64_t, mrpt::poses::CPose3D> prior{
+		{5, mrpt::poses::CPose3D(9, 0, 0, 0, 0, 0)}, {2, mrpt::poses::CPose3D(0, 3, 0, 0, 0, 0)}};
+	PoseView v;
+	v.live = [&](uint64_t id) -> const mrpt::poses::CPose3D* {
+		const auto it = live.find(id);
+		return it == live.end() ? nullptr : &it->second;
+	};
+	v.prior = &prior;
+	EXPECT_DOUBLE_EQ(v.at(5).x(), 1);
+	EXPECT_DOUBLE_EQ(v.at(2).y(), 3);
+	EXPECT_FALSE(v(8).has_value());
+	EXPECT_THROW(v.at(8), std::runtime_error);
+}
+
+TEST(MapModel, MapFileRoundTrip)
+{
+	const test::ScopedTempDir dir("map");
+	std::mt19937 rng(11);
+	Map m;
+	m.sessions = 3;
+	std::map<uint64_t, mrpt::poses::CPose3D> live;
+	for (uint64_t k = 0; k < 9; k++)
+	{
+		auto kf = std::make_shared<Keyframe>();
+		kf->id = k;
+		kf->session = k < 5 ? 1 : 2;
+		kf->scanIndex = 3 * k;
+		kf->stamp = 100 + static_cast<double>(k);
+		m.keyframes[k] = kf;
+		live[k] = mrpt::poses::CPose3D(static_cast<double>(k), 0.5 * static_cast<double>(k), 0, 0.1 * static_cast<double>(k), 0, 0);
+	}
+	m.localMaps[0] = makeLocalMap(0, {0, 1, 2, 3, 4}, rng);
+	m.localMaps[1] = makeLocalMap(1, {4, 5, 6, 7, 8}, rng);
+	m.graph.add(0, 1, LocalMapGraph::EdgeKind::Sequential, 104);
+	m.placeIndexClass = "some::Index";
+	m.placeIndex = {1, 2, 3, 4, 5};
+	EXPECT_EQ(m.nextKeyframeId(), 9u);
+	EXPECT_EQ(m.nextLocalMapId(), 2u);
+	EXPECT_EQ(m.localMapsOf(4), (std::vector<uint64_t>{0, 1}));
+	PoseView v;
+	v.live = [&](uint64_t id) -> const mrpt::poses::CPose3D* {
+		const auto it = live.find(id);
+		return it == live.end() ? nullptr : &it->second;
+	};
+	saveMap(m, v, dir.path().string());
+	EXPECT_TRUE(fs::exists(dir / "localmaps/0001.png"));
+	const Map back = loadMap(dir.path().string());
+	EXPECT_EQ(back.sessions, 3u);
+	ASSERT_EQ(back.keyframes.size(), 9u);
+	ASSERT_EQ(back.localMaps.size(), 2u);
+	EXPECT_TRUE(*back.localMaps.at(1) == *m.localMaps.at(1));
+	EXPECT_TRUE(back.graph == m.graph);
+	EXPECT_EQ(back.placeIndexClass, "some::Index");
+	EXPECT_EQ(back.placeIndex, m.placeIndex);
+	// Poses were taken from the view at saving time and come back as the prior map's.
+	for (const auto& [k, p] : live)
+	{
+		ASSERT_TRUE(back.priorPoses.count(k));
+		EXPECT_LT((back.priorPoses.at(k).asVectorVal() - p.asVectorVal()).norm(), 1e-9);
+		EXPECT_EQ(back.keyframes.at(k)->session, m.keyframes.at(k)->session);
+	}
+	// No stray temporary files.
+	for (const auto& e : fs::directory_iterator(dir.path()))
+		EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+
+	// A keyframe without a pose cannot be saved, and the previous map stays loadable.
+	live.erase(8);
+	EXPECT_THROW(saveMap(m, v, dir.path().string()), std::runtime_error);
+	EXPECT_EQ(loadMap(dir.path().string()).keyframes.size(), 9u);
+}
+
+TEST(MapModel, DamagedAndOldMapsAreRefused)
+{
+	const test::ScopedTempDir dir("map");
+	const auto file = mapFilePath(dir.path().string());
+	auto expectError = [&](const std::string& what) {
+		try
+		{
+			loadMap(dir.path().string());
+			ADD_FAILURE() << "no error";
+		}
+		catch (const std::runtime_error& e)
+		{
+			const std::string msg = e.what();
+			EXPECT_NE(msg.find(what), std::string::npos) << msg;
+		}
+	};
+	expectError("does not exist");
+	std::ofstream(file) << "not a map";
+	expectError("cannot read map '" + file + "'");
+	{
+		// A version-0 file, as the loop detector wrote it before the map model.
+		mrpt::io::CFileGZOutputStream f(file);
+		auto a = mrpt::serialization::archiveFrom(f);
+		a << uint32_t(0x504d5352) << uint8_t(0);
+	}
+	expectError("build the map again");
+	fs::remove(file);
+	fs::create_directories(file);
+	expectError("is not a file");
+}
