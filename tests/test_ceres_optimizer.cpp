@@ -318,6 +318,6 @@ TEST(CeresOptimizer, ConfigErrorsNameTheKey)
 	}
 	const auto opt = makeOptimizer("rasterslam::CeresOptimizer");
 	EXPECT_EQ(opt->paramsInForce()["loss"].as<std::string>(), "cauchy");
-	EXPECT_DOUBLE_EQ(opt->paramsInForce()["loss_scale"].as<double>(), 1.0);
+	EXPECT_DOUBLE_EQ(opt->paramsInForce()["loss_scale"].as<double>(), 3.0);
 	EXPECT_EQ(opt->paramsInForce()["max_iterations"].as<int>(), 50);
 }

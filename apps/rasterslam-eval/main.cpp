@@ -19,6 +19,8 @@ const std::vector<Command>& commands()
 	    {"traj", "trajectory errors: ATE, per-frame RPE, KITTI devkit relative errors", runTraj},
 	    {"loops", "loop closure: precision/recall against ground truth, PR sweep and plot",
 	     runLoops},
+	    {"localmaps", "relative errors between the keyframes of each local map of a saved map",
+	     runLocalMaps},
 	};
 	return cmds;
 }

@@ -1,0 +1,123 @@
+// rasterslam-eval localmaps: how well the keyframes of each local map agree with the ground
+// truth relative to each other (what local BA refines).
+#include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/map/map.h>
+
+#include <algorithm>
+
+#include "cli.h"
+
+namespace rasterslam_eval_cli
+{
+namespace
+{
+const char* kLocalMapsUsage =
+	R"(Usage: rasterslam-eval localmaps --map DIR --gt G [options]
+
+Relative errors inside local maps: for every local map of the map DIR (written by rasterslam
+run --map-out) and every pair of its keyframes, the keyframes' relative pose against the
+ground truth G (TUM; a run's groundtruth.tum) at their stamps. Also the local BA figures the
+map stores (tracks, RMS residual before and after).
+
+Options:
+  --map DIR             a saved map (required)
+  --gt FILE             ground-truth TUM trajectory (required)
+  --max-dt S            largest stamp difference to the ground truth (default 0.02)
+  --json                print one JSON object instead of text
+  -h, --help            this help
+Exit codes: 0 success, 1 bad input file, 2 bad command line.
+)";
+
+double median(std::vector<double> v)
+{
+	if (v.empty()) return std::nan("");
+	std::sort(v.begin(), v.end());
+	return v[v.size() / 2];
+}
+double mean(const std::vector<double>& v)
+{
+	if (v.empty()) return std::nan("");
+	double s = 0;
+	for (const double x : v) s += x;
+	return s / static_cast<double>(v.size());
+}
+}  // namespace
+
+int runLocalMaps(int argc, char** argv)
+{
+	const Options o(argc, argv, {"--map", "--gt", "--max-dt"}, {"--json", "-h", "--help"});
+	if (o.flag("-h") || o.flag("--help"))
+	{
+		std::cout << kLocalMapsUsage;
+		return 0;
+	}
+	const auto mapDir = o.require("--map");
+	const auto gtFile = o.require("--gt");
+	const double maxDt = o.number("--max-dt", 0.02);
+	const auto map = rasterslam::loadMap(mapDir);
+	const auto gt = io::loadTrajectory(gtFile);
+	if (gt.empty()) throw std::runtime_error("'" + gtFile + "' holds no pose");
+	auto gtAt = [&](double stamp) -> const Eigen::Isometry3d* {
+		const auto it = std::lower_bound(
+			gt.begin(), gt.end(), stamp, [](const io::StampedPose& p, double t) { return p.stamp < t; });
+		const io::StampedPose* best = nullptr;
+		if (it != gt.end()) best = &*it;
+		if (it != gt.begin() && (!best || std::abs(std::prev(it)->stamp - stamp) < std::abs(best->stamp - stamp)))
+			best = &*std::prev(it);
+		return best && std::abs(best->stamp - stamp) <= maxDt ? &best->pose : nullptr;
+	};
+	std::vector<double> et, er, tracks, rms0, rms1;
+	std::size_t maps = 0, missing = 0;
+	for (const auto& [id, lm] : map.localMaps)
+	{
+		if (lm->keyframes.size() < 2) continue;
+		++maps;
+		if (lm->baTracks > 0)
+		{
+			tracks.push_back(lm->baTracks);
+			rms0.push_back(lm->baInitialRms_m);
+			rms1.push_back(lm->baFinalRms_m);
+		}
+		for (std::size_t i = 0; i < lm->keyframes.size(); i++)
+			for (std::size_t j = i + 1; j < lm->keyframes.size(); j++)
+			{
+				const auto& ki = *map.keyframes.at(lm->keyframes[i]);
+				const auto& kj = *map.keyframes.at(lm->keyframes[j]);
+				const auto* gi = gtAt(ki.stamp);
+				const auto* gj = gtAt(kj.stamp);
+				if (!gi || !gj)
+				{
+					++missing;
+					continue;
+				}
+				const Eigen::Isometry3d est = rasterslam::toIsometry(map.priorPoses.at(ki.id)).inverse() *
+					rasterslam::toIsometry(map.priorPoses.at(kj.id));
+				const Eigen::Isometry3d truth = gi->inverse() * *gj;
+				const Eigen::Isometry3d d = truth.inverse() * est;
+				et.push_back(d.translation().norm());
+				er.push_back(Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI);
+			}
+	}
+	if (et.empty()) throw std::runtime_error("no keyframe pair of a local map has ground truth");
+	if (o.flag("--json"))
+	{
+		std::cout << "{\"local_maps\": " << maps << ", \"pairs\": " << et.size() << ", \"pairs_without_gt\": " << missing
+				  << ", \"trans_err_mean_m\": " << jsonNumber(mean(et)) << ", \"trans_err_median_m\": "
+				  << jsonNumber(median(et)) << ", \"rot_err_mean_deg\": " << jsonNumber(mean(er))
+				  << ", \"ba_maps\": " << tracks.size() << ", \"ba_tracks_mean\": " << jsonNumber(mean(tracks), !tracks.empty())
+				  << ", \"ba_rms_before_m\": " << jsonNumber(mean(rms0), !rms0.empty())
+				  << ", \"ba_rms_after_m\": " << jsonNumber(mean(rms1), !rms1.empty()) << "}\n";
+		return 0;
+	}
+	std::printf(
+		"local maps   : %zu with 2 or more keyframes, %zu keyframe pairs (%zu without ground truth)\n"
+		"relative err: translation mean %.4f m, median %.4f m; rotation mean %.4f deg\n",
+		maps, et.size(), missing, mean(et), median(et), mean(er));
+	if (!tracks.empty())
+		std::printf(
+			"local BA    : %zu maps, %.0f tracks a map, RMS residual %.3f -> %.3f m\n", tracks.size(), mean(tracks),
+			mean(rms0), mean(rms1));
+	return 0;
+}
+
+}  // namespace rasterslam_eval_cli
