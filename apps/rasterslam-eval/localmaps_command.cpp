@@ -66,7 +66,7 @@ int runLocalMaps(int argc, char** argv)
 			best = &*std::prev(it);
 		return best && std::abs(best->stamp - stamp) <= maxDt ? &best->pose : nullptr;
 	};
-	std::vector<double> et, er, tracks, rms0, rms1;
+	std::vector<double> et, er, exy, ez, eyaw, tracks, rms0, rms1;
 	std::size_t maps = 0, missing = 0;
 	for (const auto& [id, lm] : map.localMaps)
 	{
@@ -96,6 +96,9 @@ int runLocalMaps(int argc, char** argv)
 				const Eigen::Isometry3d d = truth.inverse() * est;
 				et.push_back(d.translation().norm());
 				er.push_back(Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI);
+				exy.push_back(d.translation().head<2>().norm());
+				ez.push_back(std::abs(d.translation().z()));
+				eyaw.push_back(std::abs(std::atan2(d.linear()(1, 0), d.linear()(0, 0))) * 180 / M_PI);
 			}
 	}
 	if (et.empty()) throw std::runtime_error("no keyframe pair of a local map has ground truth");
@@ -111,8 +114,9 @@ int runLocalMaps(int argc, char** argv)
 	}
 	std::printf(
 		"local maps   : %zu with 2 or more keyframes, %zu keyframe pairs (%zu without ground truth)\n"
-		"relative err: translation mean %.4f m, median %.4f m; rotation mean %.4f deg\n",
-		maps, et.size(), missing, mean(et), median(et), mean(er));
+		"relative err: translation mean %.4f m, median %.4f m; rotation mean %.4f deg\n"
+		"  of which  : horizontal %.4f m, vertical %.4f m, yaw %.4f deg\n",
+		maps, et.size(), missing, mean(et), median(et), mean(er), mean(exy), mean(ez), mean(eyaw));
 	if (!tracks.empty())
 		std::printf(
 			"local BA    : %zu maps, %.0f tracks a map, RMS residual %.3f -> %.3f m\n", tracks.size(), mean(tracks),

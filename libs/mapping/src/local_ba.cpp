@@ -63,6 +63,31 @@ struct PointObservationCost
 	}
 };
 
+/** The same observation with a planar pose update: the frame moves by (dx, dy) and turns by
+ *  dyaw about the anchor's vertical from its initial pose (R0, t0); its height, roll and
+ *  pitch stay those the tracking's ground-plane alignment gave. */
+struct PlanarPointObservationCost
+{
+	Vec3 z;
+	Vec3 sqrtInformation;
+	Eigen::Matrix3d R0;
+	Vec3 t0;
+
+	template <typename T>
+	bool operator()(const T* d, const T* X, T* residual) const
+	{
+		const T c = cos(d[2]), s = sin(d[2]);
+		Eigen::Matrix<T, 3, 3> Rz;
+		Rz << c, -s, T(0), s, c, T(0), T(0), T(0), T(1);
+		const Eigen::Matrix<T, 3, 3> R = Rz * R0.cast<T>();
+		const Eigen::Matrix<T, 3, 1> t(T(t0.x()) + d[0], T(t0.y()) + d[1], T(t0.z()));
+		const Eigen::Matrix<T, 3, 1> Xv(Eigen::Map<const Eigen::Matrix<T, 3, 1>>{X});
+		Eigen::Map<Eigen::Matrix<T, 3, 1>>{residual} =
+		    whiten<T>(R.transpose() * (Xv - t) - z.cast<T>(), sqrtInformation);
+		return true;
+	}
+};
+
 /** Disjoint sets whose root is the lowest member: a track is then named by its first
  *  observation whatever order the pairs were matched in, which keeps the output ordered. */
 class DisjointSets
@@ -347,7 +372,15 @@ LocalBaResult localBundleAdjustment(const std::vector<BaFrame>& frames, const Lo
 	if (p.huber > 0)
 		loss = std::make_unique<ceres::HuberLoss>(p.huber);
 	auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-	for (std::size_t f = 0; f < nf; f++)
+	std::vector<double> deltas(3 * nf, 0.0);  // planar: (dx, dy, dyaw) of each frame
+	for (std::size_t f = 0; f < nf && p.planar; f++)
+	{
+		problem.AddParameterBlock(&deltas[3 * f], 3);
+		if (!freeFrame[f])
+			problem.SetParameterBlockConstant(&deltas[3 * f]);
+		ordering->AddElementToGroup(&deltas[3 * f], 1);
+	}
+	for (std::size_t f = 0; f < nf && !p.planar; f++)
 	{
 		double* x = &poses[kPoseSize * f];
 		problem.AddParameterBlock(x, 3);
@@ -366,10 +399,21 @@ LocalBaResult localBundleAdjustment(const std::vector<BaFrame>& frames, const Lo
 		ordering->AddElementToGroup(&points[3 * t], 0);  // points first: Schur eliminates them
 		for (const auto& m : tracks[t].members)
 		{
-			auto* cost = new ceres::AutoDiffCostFunction<PointObservationCost, 3, 3, 4, 3>(
-			    new PointObservationCost{featurePoint(frames[m.frame], m.index), sqrtInformation});
-			double* x = &poses[kPoseSize * m.frame];
-			problem.AddResidualBlock(cost, loss.get(), x, x + 3, &points[3 * t]);
+			if (p.planar)
+			{
+				const auto& T0 = frames[m.frame].T_anchor_frame;
+				auto* cost = new ceres::AutoDiffCostFunction<PlanarPointObservationCost, 3, 3, 3>(
+				    new PlanarPointObservationCost{featurePoint(frames[m.frame], m.index), sqrtInformation,
+				                                   T0.linear(), T0.translation()});
+				problem.AddResidualBlock(cost, loss.get(), &deltas[3 * m.frame], &points[3 * t]);
+			}
+			else
+			{
+				auto* cost = new ceres::AutoDiffCostFunction<PointObservationCost, 3, 3, 4, 3>(
+				    new PointObservationCost{featurePoint(frames[m.frame], m.index), sqrtInformation});
+				double* x = &poses[kPoseSize * m.frame];
+				problem.AddResidualBlock(cost, loss.get(), x, x + 3, &points[3 * t]);
+			}
 			res.observations++;
 		}
 	}
@@ -397,6 +441,16 @@ LocalBaResult localBundleAdjustment(const std::vector<BaFrame>& frames, const Lo
 		return res;
 	}
 	res.ran = true;
+	for (std::size_t f = 0; f < nf && p.planar; f++)
+	{
+		// The planar update written back as a full pose.
+		const double* d = &deltas[3 * f];
+		const auto& T0 = frames[f].T_anchor_frame;
+		const Eigen::Quaterniond q(Eigen::AngleAxisd(d[2], Vec3::UnitZ()) * Eigen::Quaterniond(T0.linear()));
+		double* x = &poses[kPoseSize * f];
+		x[0] = T0.translation().x() + d[0], x[1] = T0.translation().y() + d[1], x[2] = T0.translation().z();
+		x[3] = q.x(), x[4] = q.y(), x[5] = q.z(), x[6] = q.w();
+	}
 	for (std::size_t f = 1; f < nf; f++)
 		if (freeFrame[f])
 			res.T_anchor_frame[f] = poseFromParams(&poses[kPoseSize * f]);

@@ -41,7 +41,9 @@ class LocalMapManager : public MapManager
 	int keyframesPerMap_ = 5;
 	double maxExtent_m_ = 40;
 	bool overlap_ = true;
-	bool localBa_ = true;
+	bool localBa_ = false;
+	/** Map points: one per observation (each keeps its descriptor) or one per track. */
+	bool mapPointsPerFeature_ = true;
 	mapping::LocalBaParams ba_;
 	raster::RasterParams mapRaster_;
 	features::OrbParams mapOrb_;
@@ -79,6 +81,8 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	ba_.huber = p.getDouble("ba_huber", ba_.huber);
 	ba_.gate_m = p.getDouble("ba_gate_m", ba_.gate_m);
 	ba_.maxHamming = p.getInt("ba_max_hamming", ba_.maxHamming);
+	ba_.planar = p.getChoice("ba_dof", "full", {"planar", "full"}) == "planar";
+	mapPointsPerFeature_ = p.getChoice("map_points", "observations", {"observations", "tracks"}) == "observations";
 	mapRaster_.resolution_m = p.getDouble("map_resolution_m", 0.2);
 	mapRaster_.maxRange_m = p.getDouble("map_extent_m", 60.0);
 	mapRaster_.minRange_m = 0;
@@ -196,9 +200,28 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		lm->baTracks = static_cast<uint32_t>(ba.tracks);
 		lm->baInitialRms_m = static_cast<float>(ba.initialRms_m);
 		lm->baFinalRms_m = static_cast<float>(ba.finalRms_m);
-		for (const auto& p : ba.points) lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
-		lm->descriptors = std::move(ba.descriptors);
-		lm->observers = std::move(ba.observers);
+		if (!mapPointsPerFeature_)
+		{
+			for (const auto& p : ba.points) lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
+			lm->descriptors = std::move(ba.descriptors);
+			lm->observers = std::move(ba.observers);
+		}
+		else
+			// Every observation keeps its descriptor (what a later query matches against, in
+			// whatever viewpoint), at the position BA gave its point.
+			for (std::size_t i = 0; i < frames.size(); i++)
+				for (std::size_t j = 0; j < frames[i].n; j++)
+				{
+					const int pt = ba.pointOfFeature[i][j];
+					const Eigen::Vector3f p = pt >= 0
+						? ba.points[static_cast<std::size_t>(pt)]
+						: (T[i] * Eigen::Vector3d(frames[i].xyz[3 * j], frames[i].xyz[3 * j + 1], frames[i].xyz[3 * j + 2]))
+							  .cast<float>();
+					lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
+					lm->descriptors.insert(
+						lm->descriptors.end(), frames[i].descriptors + 32 * j, frames[i].descriptors + 32 * (j + 1));
+					lm->observers.push_back(pt >= 0 ? ba.observers[static_cast<std::size_t>(pt)] : (1u << i));
+				}
 	}
 	else
 	{

@@ -35,6 +35,11 @@ struct LocalBaParams
 	double sigmaXY_m = 0.1, sigmaZ_m = 0.2;
 	double huber = 2.0;  //!< Huber threshold in sigmas (<= 0: plain least squares)
 	int maxIterations = 20;
+	/** Refine only the horizontal position and heading of the keyframes (x, y, yaw about the
+	 *  anchor's vertical); height, roll and pitch stay as given. Elevation-image features
+	 *  locate a point well across the ground and poorly in height (the highest point of a
+	 *  cell depends on which beam reaches it), so their z cannot correct roll and pitch. */
+	bool planar = false;
 };
 
 struct LocalBaResult
