@@ -30,16 +30,15 @@ const std::string& vlp16Rawlog()
 	return path;
 }
 
-/** slam.yaml with extra lines appended to its sections (the vocabulary path made absolute). */
-fs::path slamConfig(const fs::path& dir, const std::string& mapManagerExtra, const std::string& engineExtra)
+/** slam.yaml (the vocabulary path made absolute), local BA on or off, extra engine lines. */
+fs::path slamConfig(const fs::path& dir, bool localBa, const std::string& engineExtra)
 {
 	std::ifstream in(test::sourcePath("share/rasterslam/config/slam.yaml"));
 	std::string y((std::istreambuf_iterator<char>(in)), {});
 	y = std::regex_replace(
 		y, std::regex("vocabulary_file: \\.\\./vocab/"),
 		"vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
-	if (!mapManagerExtra.empty())
-		y = std::regex_replace(y, std::regex("  params:\n    keyframes_per_map"), "  params:\n" + mapManagerExtra + "    keyframes_per_map");
+	y = std::regex_replace(y, std::regex("local_ba: false"), localBa ? "local_ba: true" : "local_ba: false");
 	if (!engineExtra.empty()) y = std::regex_replace(y, std::regex("\nengine:\n"), "\nengine:\n" + engineExtra);
 	const auto p = dir / "cfg.yaml";
 	std::ofstream(p) << y;
@@ -77,7 +76,7 @@ double ate(const fs::path& out, const std::string& est = "trajectory.tum")
 TEST(Mapping, LocalMapsOverlapAndCarryTheOptimizedPoses)
 {
 	const test::ScopedTempDir dir("mapping");
-	const auto r = run(slamConfig(dir.path(), "", ""), dir / "out", " --map-out " + (dir / "map").string());
+	const auto r = run(slamConfig(dir.path(), false, ""), dir / "out", " --map-out " + (dir / "map").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	const Map map = loadMap((dir / "map").string());
 	const auto keyframes = static_cast<std::size_t>(yamlNumber(dir / "out/run.yaml", "keyframes"));
@@ -132,7 +131,7 @@ TEST(Mapping, LocalMapsOverlapAndCarryTheOptimizedPoses)
 TEST(Mapping, OnlinePosesAreThoseOfTheTrackingUntilTheFirstLoop)
 {
 	const test::ScopedTempDir dir("mapping");
-	ASSERT_EQ(run(slamConfig(dir.path(), "", ""), dir / "slam").exitCode, 0);
+	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "slam").exitCode, 0);
 	ASSERT_EQ(run(test::sourcePath("share/rasterslam/config/default.yaml"), dir / "odo").exitCode, 0);
 	const auto online = io::loadTrajectory((dir / "slam/trajectory_online.tum").string());
 	const auto final = io::loadTrajectory((dir / "slam/trajectory.tum").string());
@@ -162,9 +161,9 @@ TEST(Mapping, OnlinePosesAreThoseOfTheTrackingUntilTheFirstLoop)
 TEST(Mapping, WrongLoopEdgesAreDownweighted)
 {
 	const test::ScopedTempDir dir("mapping");
-	ASSERT_EQ(run(slamConfig(dir.path(), "", ""), dir / "clean").exitCode, 0);
+	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "clean").exitCode, 0);
 	// The engine's test hook replaces accepted loop edges by wrong ones (5 m, 20 deg off).
-	ASSERT_EQ(run(slamConfig(dir.path(), "", "  test_corrupt_loops: 0.3\n"), dir / "wrong").exitCode, 0);
+	ASSERT_EQ(run(slamConfig(dir.path(), false, "  test_corrupt_loops: 0.3\n"), dir / "wrong").exitCode, 0);
 	const double corrupted = yamlNumber(dir / "wrong/run.yaml", "corrupted_loops_test_hook");
 	ASSERT_GE(corrupted, 1);
 	EXPECT_EQ(yamlNumber(dir / "wrong/run.yaml", "loop_edges_downweighted"), corrupted);
@@ -176,7 +175,7 @@ TEST(Mapping, WrongLoopEdgesAreDownweighted)
 TEST(Mapping, LocalBaRunsAndIsDeterministic)
 {
 	const test::ScopedTempDir dir("mapping");
-	const auto cfg = slamConfig(dir.path(), "    local_ba: true\n", "");
+	const auto cfg = slamConfig(dir.path(), true, "");
 	for (const auto* out : {"a", "b"})
 	{
 		const auto r = run(cfg, dir / out, " --map-out " + (dir / out / "map").string());
