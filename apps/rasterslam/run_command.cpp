@@ -296,6 +296,10 @@ int runCommand(int argc, char** argv)
 	summary["odometry_ms_median"] = percentile(odo, 0.5);
 	summary["peak_rss_mb"] = peakRssMb();
 	summary["online_optimization_ms_total"] = res.onlineOptimization_ms;
+	yaml cpu = yaml::Map();
+	cpu["tracking_s"] = res.cpuTracking_s;
+	cpu["mapping_and_loop_closing_s"] = res.cpuBackend_s;
+	summary["cpu"] = cpu;
 	if (res.optimizer.ran)
 	{
 		summary["final_optimization_ms"] = res.optimizer.time_ms;

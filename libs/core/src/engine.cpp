@@ -2,6 +2,8 @@
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/plugin_loader.h>
 
+#include "backend.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -188,6 +190,24 @@ void Engine::setLogLevel(mrpt::system::VerbosityLevel level)
 		if (p) p->setMinLoggingLevel(level);
 }
 
+mrpt::graphs::CNetworkOfPoses3DInf::edge_t Engine::rawlogOdometryEdge(const mrpt::poses::CPose3DPDFGaussian& odo) const
+{
+	mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+	e.mean = odo.mean;
+	const auto& C = odo.cov;
+	if (C.asEigen().isZero(0) || std::abs(C.det()) < 1e-18)
+	{
+		// No usable covariance in the input: the configured model.
+		e.cov_inv.setZero();
+		const double st = rawlogOdoSigma_m_, sr = rawlogOdoSigma_deg_ * M_PI / 180;
+		for (int i = 0; i < 3; i++) e.cov_inv(i, i) = 1 / (st * st);
+		for (int i = 3; i < 6; i++) e.cov_inv(i, i) = 1 / (sr * sr);
+	}
+	else
+		e.cov_inv = C.inverse_LLt();
+	return e;
+}
+
 RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 {
 	RunResult res;
@@ -196,45 +216,22 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	// Keyframe ids continue those of a loaded map: unique across its sessions.
 	mrpt::graphs::TNodeID nextNode = mapManager_ ? mapManager_->map().nextKeyframeId() : 0;
 	graph.root = nextNode;
-	PoseView poses;
-	poses.live = [&graph](uint64_t id) -> const mrpt::poses::CPose3D* {
-		const auto it = graph.nodes.find(id);
-		return it == graph.nodes.end() ? nullptr : &it->second;
-	};
-	if (mapManager_) poses.prior = &mapManager_->map().priorPoses;
-	std::mt19937 corruptRng(12345);
-	std::size_t kfSinceOptimization = 0;
-	bool optimizationPending = false;
+	// Mapping and loop closing: on their own thread in real time, in step otherwise.
+	detail::BackendSettings bs;
+	bs.optimizeOnline = optimizeOnline_;
+	bs.optimizeEveryKeyframes = optimizeEveryKeyframes_;
+	bs.testCorruptLoops = testCorruptLoops_;
+	detail::Backend backend(
+		mapManager_.get(), loopDetector_.get(), optimizer_.get(), bs, res, *this, opts.realtime);
+	const PoseView& poses = backend.poses();
+	const double cpu0 = detail::threadCpuSeconds();
 	bool lostSinceKf = false;
-	// Writes what the mapping did: local BA's keyframe poses into the graph (the tracking edge
-	// between consecutive keyframes follows, so a later optimization keeps them), finished
-	// local maps into the place index.
-	auto applyMapping = [&](const MappingUpdate& up) {
-		if (!up.T_anchor_kf.empty())
-		{
-			++res.localBaRuns;
-			const mrpt::poses::CPose3D anchor = graph.nodes.at(up.anchor);
-			mrpt::graphs::TNodeID prev = up.anchor;
-			for (const auto& [id, T] : up.T_anchor_kf)
-			{
-				graph.nodes.at(id) = anchor + T;
-				const auto range = graph.edges.equal_range({prev, id});
-				if (range.first != range.second)
-					range.first->second.mean = graph.nodes.at(id) - graph.nodes.at(prev);
-				prev = id;
-			}
-		}
-		for (const auto& f : up.finished)
-		{
-			++res.localMaps;
-			if (loopDetector_) loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
-		}
-	};
 
 	const auto wall0 = Clock::now();
 	std::optional<double> firstStamp;
 	mrpt::poses::CPose3D currPose;  // odometry pose of the current scan
 	mrpt::poses::CPose3D lastKfPose;
+	mrpt::poses::CPose3D T_kf_prev;  // the previous scan in the frame of its keyframe
 	mrpt::graphs::TNodeID lastKf = 0;
 	bool haveKf = false;
 	std::size_t stepsSinceKf = 0;
@@ -341,11 +338,17 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				1.0, "scan " << scan->index << ": tracking lost (" << odo.message
 							 << "); using the motion prior");
 		}
+		if (haveKf)
+		{
+			// The back end may have moved the keyframe (local BA, a loop): track from there.
+			std::lock_guard<std::mutex> lk(backend.graphMutex());
+			lastKfPose = graph.nodes.at(lastKf);
+		}
 		if (!haveKf) currPose = mrpt::poses::CPose3D();
 		else if (odo.T_kf_curr)
 			currPose = lastKfPose + *odo.T_kf_curr;
 		else
-			currPose = currPose + odo.T_prev_curr;
+			currPose = lastKfPose + (T_kf_prev + odo.T_prev_curr);
 		++stepsSinceKf;
 
 		// Relocalization (paper, "Re-localization"): at the start of a session with a prior
@@ -360,11 +363,16 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			// A session in a prior map: try every keyframe until one is found in it, then
 			// move everything tracked so far into the map's frame.
 			const auto t0 = Clock::now();
-			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
+			RelocalizationResult rl;
+			{
+				std::lock_guard<std::mutex> lk(backend.mapMutex());
+				rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
+			}
 			rec.ms.loop += msSince(t0);
 			if (rl.found)
 			{
 				const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
+				std::lock_guard<std::mutex> lk(backend.graphMutex());
 				for (auto& [id, p] : graph.nodes) p = C + p;
 				lastKfPose = C + lastKfPose;
 				currPose = rl.pose;
@@ -385,16 +393,21 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			loopDetector_ && rasterPtr && haveKf && odo.status == TrackingStatus::Lost && relocalizeOnLoss_)
 		{
 			const auto t0 = Clock::now();
-			const auto rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
+			RelocalizationResult rl;
+			{
+				std::lock_guard<std::mutex> lk(backend.mapMutex());
+				rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
+			}
 			rec.ms.loop += msSince(t0);
-			const auto it = graph.nodes.find(rl.keyframe);
+			const auto matched = poses.live(rl.keyframe) ? std::optional<mrpt::poses::CPose3D>(*poses.live(rl.keyframe))
+													   : std::nullopt;
 			if (rl.found)
 			{
 				++res.relocalized;
 				MRPT_LOG_INFO_STREAM(
 					"scan " << scan->index << ": relocalized in local map " << rl.localMap << " (keyframe "
 							<< rl.keyframe << ", " << rl.inliers << " inliers)");
-				if (it != graph.nodes.end())
+				if (matched)
 				{
 					// The map's keyframe pose may predate optimization: the relative pose to
 					// it is what counts.
@@ -404,7 +417,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 					c.information.setIdentity();
 					c.information *= 100;
 					relocEdge = c;
-					currPose = it->second + c.T_from_to;
+					currPose = *matched + c.T_from_to;
 				}
 				else
 					currPose = rl.pose;  // a keyframe of the prior map: already its frame
@@ -423,45 +436,35 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		{
 			const bool haveKfBefore = haveKf;
 			const mrpt::graphs::TNodeID id = nextNode++;
-			graph.nodes[id] = currPose;
-			if (haveKf)
 			{
-				mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
-				e.mean = currPose - lastKfPose;
-				// Information of a chain of n steps is roughly 1/n of one step's; an odometry
-				// that tracks against the keyframe gives the edge's own information.
-				e.cov_inv = odo.information;
-				if (!odo.T_kf_curr) e.cov_inv *= 1.0 / static_cast<double>(stepsSinceKf);
-				graph.insertEdge(lastKf, id, e);
-				if (odoSinceKf)
+				std::lock_guard<std::mutex> lk(backend.graphMutex());
+				graph.nodes[id] = currPose;
+				if (haveKf)
 				{
-					mrpt::graphs::CNetworkOfPoses3DInf::edge_t oe;
-					oe.mean = odoSinceKf->mean;
-					const auto& C = odoSinceKf->cov;
-					if (C.asEigen().isZero(0) || std::abs(C.det()) < 1e-18)
+					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+					e.mean = currPose - lastKfPose;
+					// Information of a chain of n steps is roughly 1/n of one step's; an
+					// odometry that tracks against the keyframe gives the edge's own.
+					e.cov_inv = odo.information;
+					if (!odo.T_kf_curr) e.cov_inv *= 1.0 / static_cast<double>(stepsSinceKf);
+					graph.insertEdge(lastKf, id, e);
+					if (odoSinceKf)
 					{
-						// No usable covariance in the input: the configured model.
-						oe.cov_inv.setZero();
-						const double st = rawlogOdoSigma_m_, sr = rawlogOdoSigma_deg_ * M_PI / 180;
-						for (int i = 0; i < 3; i++) oe.cov_inv(i, i) = 1 / (st * st);
-						for (int i = 3; i < 6; i++) oe.cov_inv(i, i) = 1 / (sr * sr);
+						graph.insertEdge(lastKf, id, rawlogOdometryEdge(*odoSinceKf));
+						++res.odometryEdges;
 					}
-					else
-						oe.cov_inv = C.inverse_LLt();
-					graph.insertEdge(lastKf, id, oe);
-					++res.odometryEdges;
 				}
-			}
-			odoSinceKf.reset();
-			if (relocEdge)
-			{
-				mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
-				e.mean = relocEdge->T_from_to;
-				e.cov_inv = relocEdge->information;
-				graph.insertEdge(relocEdge->from, id, e);
-				res.uncertainEdges.insert({relocEdge->from, id});
-				++res.loopEdges;
-				optimizationPending = true;
+				odoSinceKf.reset();
+				if (relocEdge)
+				{
+					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+					e.mean = relocEdge->T_from_to;
+					e.cov_inv = relocEdge->information;
+					graph.insertEdge(relocEdge->from, id, e);
+					res.uncertainEdges.insert({relocEdge->from, id});
+					++res.loopEdges;
+					backend.requestOptimization();
+				}
 			}
 			lastKf = id;
 			lastKfPose = currPose;
@@ -470,69 +473,43 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			rec.keyframe = true;
 			++res.keyframes;
 
-			KeyframeInfo kf{id, scan->index, scan->stamp, currPose, odo.keyframeData, lostSinceKf && haveKfBefore};
+			detail::KeyframeJob job;
+			job.kf = KeyframeInfo{id, scan->index, scan->stamp, currPose, odo.keyframeData, lostSinceKf && haveKfBefore};
 			lostSinceKf = false;
-			if (kf.data)
+			if (job.kf.data)
 			{
-				kf.data->id = id;
-				kf.data->scanIndex = scan->index;
-				kf.data->stamp = scan->stamp;
-				kf.data->pose = currPose;
+				job.kf.data->id = id;
+				job.kf.data->scanIndex = scan->index;
+				job.kf.data->stamp = scan->stamp;
+				job.kf.data->pose = currPose;
 			}
-			if (mapManager_)
+			job.record = res.scans.size();
+			if (opts.realtime)
 			{
-				const auto t0 = Clock::now();
-				applyMapping(mapManager_->addKeyframe(kf, *scan, rasterPtr, poses));
-				// Local BA may have moved this keyframe: tracking goes on from where it is now.
-				lastKfPose = currPose = kf.pose = graph.nodes.at(id);
-				rec.ms.mapping = msSince(t0);
+				// The worker keeps its own copies; the tracking goes on with the next scan.
+				job.scan = std::make_shared<const Scan>(*scan);
+				if (rasterPtr) job.raster = std::make_shared<const RasterFrame>(raster);
 			}
-			if (loopDetector_)
+			else
 			{
-				const auto t0 = Clock::now();
-				for (auto lc : loopDetector_->detect(kf, mapManager_->map(), poses))
-				{
-					if (!graph.nodes.count(lc.from) || !graph.nodes.count(lc.to))
-					{
-						// A keyframe of a map loaded with --map-in: not a node of this graph.
-						++res.loopsToPriorMap;
-						continue;
-					}
-					if (testCorruptLoops_ > 0 &&
-						std::uniform_real_distribution<double>(0, 1)(corruptRng) < testCorruptLoops_)
-					{
-						// Test hook: a wrong loop, as a perceptual alias would give (5 m, 20 deg).
-						lc.T_from_to = lc.T_from_to + mrpt::poses::CPose3D(5, -2, 0, 20 * M_PI / 180, 0, 0);
-						++res.corruptedLoops;
-					}
-					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
-					e.mean = lc.T_from_to;
-					e.cov_inv = lc.information;
-					graph.insertEdge(lc.from, lc.to, e);
-					res.uncertainEdges.insert({lc.from, lc.to});
-					mapManager_->loopAccepted(lc.from, lc.to, scan->stamp);
-					++res.loopEdges;
-					optimizationPending = true;
-				}
-				// Paper, "Loop Closure": the trajectory is optimized after a loop constraint is
-				// added (at most every optimize_every_keyframes keyframes).
-				++kfSinceOptimization;
-				if (optimizer_ && optimizeOnline_ && optimizationPending &&
-					kfSinceOptimization >= static_cast<std::size_t>(optimizeEveryKeyframes_))
-				{
-					const auto r = optimizer_->optimize(graph, res.uncertainEdges);
-					++res.onlineOptimizations;
-					res.onlineOptimization_ms += r.time_ms;
-					optimizationPending = false;
-					kfSinceOptimization = 0;
-					lastKfPose = currPose = graph.nodes.at(id);
-				}
-				rec.ms.loop += msSince(t0);
+				// Done before this scan ends: no copy needed.
+				job.scan = std::shared_ptr<const Scan>(&*scan, [](const Scan*) {});
+				if (rasterPtr) job.raster = std::shared_ptr<const RasterFrame>(rasterPtr, [](const RasterFrame*) {});
+			}
+			if (mapManager_ || loopDetector_) backend.submit(std::move(job));
+			if (!opts.realtime)
+			{
+				// Local BA or an optimization may have moved this keyframe.
+				std::lock_guard<std::mutex> lk(backend.graphMutex());
+				lastKfPose = currPose = graph.nodes.at(id);
 			}
 		}
 		rec.kfNode = lastKf;
 		rec.T_kf_scan = currPose - lastKfPose;
 		rec.onlinePose = currPose;
+		// Exactly the identity on a keyframe: composing a rotation with its own inverse would
+		// feed rounding back into every following scan.
+		T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : rec.T_kf_scan;
 		rec.ms.total = msSince(tScan) + readMs;
 		res.scans.push_back(rec);
 		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
@@ -546,18 +523,24 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		res.error = source.name() + ": scan #" + std::to_string(currentIndex) + ": " + what;
 	}
 	res.stopReason = source.stopReason();
-	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();
-	if (mapManager_)
+	try
 	{
-		try
-		{
-			applyMapping(mapManager_->finish(poses));
-		}
-		catch (const std::exception& e)
-		{
-			if (res.error.empty()) res.error = std::string("finishing the map: ") + e.what();
-		}
+		backend.finish();
 	}
+	catch (const std::exception& e)
+	{
+		if (res.error.empty()) res.error = std::string("finishing the map: ") + e.what();
+	}
+	if (res.error.empty() && !backend.error().empty()) res.error = "mapping or loop closing: " + backend.error();
+	for (const auto& [record, t] : backend.timings())
+		if (record < res.scans.size())
+		{
+			res.scans[record].ms.mapping += t.mapping;
+			res.scans[record].ms.loop += t.loop;
+		}
+	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();
+	res.cpuBackend_s = backend.cpuSeconds();
+	res.cpuTracking_s = detail::threadCpuSeconds() - cpu0 - (opts.realtime ? 0.0 : res.cpuBackend_s);
 
 	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))
 	{

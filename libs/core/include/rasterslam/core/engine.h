@@ -71,6 +71,9 @@ struct RunResult
 	/** Edges that may be outliers (loop, relocalization), for the robust loss. */
 	EdgeSet uncertainEdges;
 	OptimizerResult optimizer;  //!< the final optimization
+	/** CPU time of the tracking and of the back end (mapping, loop closing, online
+	 *  optimization), s; in real-time mode each is its own thread. */
+	double cpuTracking_s = 0, cpuBackend_s = 0;
 	/** What the loop detector examined (empty without one). */
 	std::vector<LoopDecision> loopDecisions;
 	/** Empty if the input ended normally; else where and why it stopped early. */
@@ -107,6 +110,7 @@ class Engine : public mrpt::system::COutputLogger
 	const mrpt::containers::yaml& configInForce() const { return inForce_; }
 
    private:
+	mrpt::graphs::CNetworkOfPoses3DInf::edge_t rawlogOdometryEdge(const mrpt::poses::CPose3DPDFGaussian& odo) const;
 	Plugin::Ptr makeRole(
 		const mrpt::containers::yaml& cfg, const std::string& section,
 		const mrpt::rtti::TRuntimeClassId* role, bool required);

@@ -1,0 +1,251 @@
+#include "backend.h"
+
+#include <chrono>
+#include <ctime>
+
+namespace rasterslam::detail
+{
+namespace
+{
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0)
+{
+	return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+}  // namespace
+
+double threadCpuSeconds()
+{
+	timespec ts{};
+	clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+	return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+Backend::Backend(
+	MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer, const BackendSettings& s,
+	RunResult& res, mrpt::system::COutputLogger& log, bool threaded)
+	: mapManager_(mapManager),
+	  loopDetector_(loopDetector),
+	  optimizer_(optimizer),
+	  s_(s),
+	  res_(res),
+	  log_(log),
+	  threaded_(threaded)
+{
+	poses_.live = [this](uint64_t id) -> const mrpt::poses::CPose3D* {
+		// A copy taken under the lock: the optimizer may rewrite the node right after.
+		thread_local mrpt::poses::CPose3D copy;
+		std::lock_guard<std::mutex> lk(graphMutex_);
+		const auto it = res_.graph.nodes.find(id);
+		if (it == res_.graph.nodes.end()) return nullptr;
+		copy = it->second;
+		return &copy;
+	};
+	if (mapManager_) poses_.prior = &mapManager_->map().priorPoses;
+	if (threaded_) worker_ = std::thread([this] { workerLoop(); });
+}
+
+Backend::~Backend()
+{
+	if (worker_.joinable())
+	{
+		{
+			std::lock_guard<std::mutex> lk(queueMutex_);
+			stop_ = true;
+		}
+		queueCv_.notify_all();
+		worker_.join();
+	}
+}
+
+std::string Backend::error() const
+{
+	std::lock_guard<std::mutex> lk(queueMutex_);
+	return error_;
+}
+
+void Backend::submit(KeyframeJob job)
+{
+	if (!threaded_)
+	{
+		const double c0 = threadCpuSeconds();
+		process(job);
+		cpu_s_ += threadCpuSeconds() - c0;
+		return;
+	}
+	{
+		std::lock_guard<std::mutex> lk(queueMutex_);
+		queue_.push_back(std::move(job));
+	}
+	queueCv_.notify_one();
+}
+
+void Backend::workerLoop()
+{
+	const double c0 = threadCpuSeconds();
+	for (;;)
+	{
+		KeyframeJob job;
+		{
+			std::unique_lock<std::mutex> lk(queueMutex_);
+			queueCv_.wait(lk, [this] { return stop_ || !queue_.empty(); });
+			if (queue_.empty()) break;
+			job = std::move(queue_.front());
+			queue_.pop_front();
+			busy_ = true;
+		}
+		try
+		{
+			if (error().empty()) process(job);
+		}
+		catch (const std::exception& e)
+		{
+			std::lock_guard<std::mutex> lk(queueMutex_);
+			if (error_.empty()) error_ = e.what();
+		}
+		{
+			std::lock_guard<std::mutex> lk(queueMutex_);
+			busy_ = false;
+		}
+		idleCv_.notify_all();
+	}
+	cpu_s_ = threadCpuSeconds() - c0;
+}
+
+void Backend::finish()
+{
+	if (worker_.joinable())
+	{
+		{
+			std::unique_lock<std::mutex> lk(queueMutex_);
+			idleCv_.wait(lk, [this] { return queue_.empty() && !busy_; });
+			stop_ = true;
+		}
+		queueCv_.notify_all();
+		worker_.join();
+	}
+	if (!mapManager_) return;
+	const double c0 = threadCpuSeconds();
+	std::lock_guard<std::mutex> lk(mapMutex_);
+	applyMapping(mapManager_->finish(poses_));
+	cpu_s_ += threadCpuSeconds() - c0;
+}
+
+void Backend::writePoses(const std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D>& updated)
+{
+	if (updated.empty()) return;
+	const auto newest = updated.rbegin()->first;
+	auto& nodes = res_.graph.nodes;
+	const mrpt::poses::CPose3D before = nodes.at(newest);
+	for (const auto& [id, p] : updated) nodes.at(id) = p;
+	// Keyframe ids grow with time: those past the newest updated one were made by the tracking
+	// from its old pose; they move rigidly with it.
+	const mrpt::poses::CPose3D C = updated.rbegin()->second + (mrpt::poses::CPose3D() - before);
+	for (auto it = nodes.upper_bound(newest); it != nodes.end(); ++it) it->second = C + it->second;
+}
+
+void Backend::applyMapping(const MappingUpdate& up)
+{
+	if (!up.T_anchor_kf.empty())
+	{
+		std::lock_guard<std::mutex> lk(graphMutex_);
+		++res_.localBaRuns;
+		const mrpt::poses::CPose3D anchor = res_.graph.nodes.at(up.anchor);
+		std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D> updated;
+		for (const auto& [id, T] : up.T_anchor_kf) updated[id] = anchor + T;
+		writePoses(updated);
+		// The tracking edge between consecutive keyframes takes the refined motion, so a later
+		// optimization keeps it.
+		mrpt::graphs::TNodeID prev = up.anchor;
+		for (const auto& [id, T] : up.T_anchor_kf)
+		{
+			const auto range = res_.graph.edges.equal_range({prev, id});
+			if (range.first != range.second)
+				range.first->second.mean = res_.graph.nodes.at(id) - res_.graph.nodes.at(prev);
+			prev = id;
+		}
+	}
+	for (const auto& f : up.finished)
+	{
+		{
+			std::lock_guard<std::mutex> lk(graphMutex_);
+			++res_.localMaps;
+		}
+		if (loopDetector_) loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
+	}
+}
+
+void Backend::optimizeNow()
+{
+	// The optimizer works on a copy, so the tracking can add keyframes meanwhile.
+	mrpt::graphs::CNetworkOfPoses3DInf g;
+	EdgeSet uncertain;
+	{
+		std::lock_guard<std::mutex> lk(graphMutex_);
+		g = res_.graph;
+		uncertain = res_.uncertainEdges;
+	}
+	const auto r = optimizer_->optimize(g, uncertain);
+	std::lock_guard<std::mutex> lk(graphMutex_);
+	std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D> updated;
+	for (const auto& [id, p] : g.nodes) updated[id] = p;
+	writePoses(updated);
+	++res_.onlineOptimizations;
+	res_.onlineOptimization_ms += r.time_ms;
+}
+
+void Backend::process(KeyframeJob& job)
+{
+	StageTimes t;
+	std::lock_guard<std::mutex> mapLock(mapMutex_);
+	if (mapManager_)
+	{
+		const auto t0 = Clock::now();
+		applyMapping(mapManager_->addKeyframe(job.kf, *job.scan, job.raster.get(), poses_));
+		// Local BA may have moved this keyframe: the loop query starts from where it is now.
+		job.kf.pose = poses_.at(job.kf.node);
+		t.mapping = msSince(t0);
+	}
+	if (loopDetector_)
+	{
+		const auto t0 = Clock::now();
+		for (auto lc : loopDetector_->detect(job.kf, mapManager_->map(), poses_))
+		{
+			std::lock_guard<std::mutex> lk(graphMutex_);
+			if (!res_.graph.nodes.count(lc.from) || !res_.graph.nodes.count(lc.to))
+			{
+				// A keyframe of a map loaded with --map-in: not a node of this graph.
+				++res_.loopsToPriorMap;
+				continue;
+			}
+			if (s_.testCorruptLoops > 0 && std::uniform_real_distribution<double>(0, 1)(corruptRng_) < s_.testCorruptLoops)
+			{
+				// Test hook: a wrong loop, as a perceptual alias would give (5 m, 20 deg).
+				lc.T_from_to = lc.T_from_to + mrpt::poses::CPose3D(5, -2, 0, 20 * M_PI / 180, 0, 0);
+				++res_.corruptedLoops;
+			}
+			mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+			e.mean = lc.T_from_to;
+			e.cov_inv = lc.information;
+			res_.graph.insertEdge(lc.from, lc.to, e);
+			res_.uncertainEdges.insert({lc.from, lc.to});
+			mapManager_->loopAccepted(lc.from, lc.to, job.kf.stamp);
+			++res_.loopEdges;
+			optimizationPending_ = true;
+		}
+		// Paper, "Loop Closure": the trajectory is optimized after a loop constraint is added
+		// (at most every optimize_every_keyframes keyframes).
+		++kfSinceOptimization_;
+		if (optimizer_ && s_.optimizeOnline && optimizationPending_ &&
+			kfSinceOptimization_ >= static_cast<std::size_t>(s_.optimizeEveryKeyframes))
+		{
+			optimizeNow();
+			optimizationPending_ = false;
+			kfSinceOptimization_ = 0;
+		}
+		t.loop = msSince(t0);
+	}
+	times_.emplace_back(job.record, t);
+}
+
+}  // namespace rasterslam::detail

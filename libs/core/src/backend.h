@@ -1,0 +1,101 @@
+// The engine's back end (private to libs/core): mapping and loop closing for each keyframe,
+// then online pose-graph optimization. Paper, "Mapping" and "Loop Closure": they run beside
+// the tracking. In batch mode each keyframe's work is done at once, on the caller's thread,
+// so a run is deterministic; in real-time mode a worker thread does it and the tracking never
+// waits for it (except to relocalize, which reads the map).
+#pragma once
+
+#include <rasterslam/core/engine.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <random>
+#include <thread>
+
+namespace rasterslam::detail
+{
+struct KeyframeJob
+{
+	KeyframeInfo kf;
+	std::shared_ptr<const Scan> scan;
+	std::shared_ptr<const RasterFrame> raster;  //!< null without a rasterizer
+	std::size_t record = 0;  //!< index of the keyframe's scan in RunResult::scans
+};
+
+struct BackendSettings
+{
+	bool optimizeOnline = true;
+	int optimizeEveryKeyframes = 10;
+	double testCorruptLoops = 0;
+};
+
+class Backend
+{
+   public:
+	Backend(
+		MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer, const BackendSettings& s,
+		RunResult& res, mrpt::system::COutputLogger& log, bool threaded);
+	~Backend();
+	Backend(const Backend&) = delete;
+	Backend& operator=(const Backend&) = delete;
+
+	/** Keyframe poses as they are now (each lookup locks the graph). */
+	const PoseView& poses() const { return poses_; }
+	/** Guards res.graph: the tracking locks it to read or add nodes and edges. */
+	std::mutex& graphMutex() { return graphMutex_; }
+	/** Guards the map and the place index: the tracking locks it to relocalize. */
+	std::mutex& mapMutex() { return mapMutex_; }
+
+	/** Hands a keyframe over (batch: processed before returning). */
+	void submit(KeyframeJob job);
+	/** Waits for every submitted keyframe (and ends the worker), then finishes the open
+	 *  local map. */
+	void finish();
+	/** The tracking added an uncertain edge (relocalization): optimize at the next chance. */
+	void requestOptimization() { optimizationPending_ = true; }
+	/** Mapping and loop ms of each keyframe's scan record, complete after finish(). */
+	const std::vector<std::pair<std::size_t, StageTimes>>& timings() const { return times_; }
+	/** Thread CPU time spent on back-end work, s. */
+	double cpuSeconds() const { return cpu_s_; }
+	/** First error of the back end, empty if none. */
+	std::string error() const;
+
+   private:
+	void process(KeyframeJob& job);
+	void applyMapping(const MappingUpdate& up);
+	void optimizeNow();
+	/** Writes new poses for some nodes; nodes made after the newest of them (the tracking
+	 *  went on meanwhile) move with it. Caller holds graphMutex_. */
+	void writePoses(const std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D>& updated);
+	void workerLoop();
+
+	MapManager* mapManager_;
+	LoopDetector* loopDetector_;
+	Optimizer* optimizer_;
+	BackendSettings s_;
+	RunResult& res_;
+	mrpt::system::COutputLogger& log_;
+	PoseView poses_;
+	std::mutex graphMutex_, mapMutex_;
+	std::mt19937 corruptRng_{12345};
+	std::size_t kfSinceOptimization_ = 0;
+	std::atomic<bool> optimizationPending_{false};
+	std::vector<std::pair<std::size_t, StageTimes>> times_;
+	double cpu_s_ = 0;
+	std::string error_;
+
+	// real-time mode
+	bool threaded_ = false;
+	std::thread worker_;
+	mutable std::mutex queueMutex_;
+	std::condition_variable queueCv_, idleCv_;
+	std::deque<KeyframeJob> queue_;
+	bool busy_ = false, stop_ = false;
+};
+
+/** CPU time of the calling thread, s. */
+double threadCpuSeconds();
+
+}  // namespace rasterslam::detail
