@@ -106,7 +106,9 @@ int runLocalMaps(int argc, char** argv)
 	{
 		std::cout << "{\"local_maps\": " << maps << ", \"pairs\": " << et.size() << ", \"pairs_without_gt\": " << missing
 				  << ", \"trans_err_mean_m\": " << jsonNumber(mean(et)) << ", \"trans_err_median_m\": "
-				  << jsonNumber(median(et)) << ", \"rot_err_mean_deg\": " << jsonNumber(mean(er))
+				  << jsonNumber(median(et)) << ", \"rot_err_mean_deg\": " << jsonNumber(mean(er)) << ", \"horizontal_err_mean_m\": "
+				  << jsonNumber(mean(exy)) << ", \"vertical_err_mean_m\": " << jsonNumber(mean(ez))
+				  << ", \"yaw_err_mean_deg\": " << jsonNumber(mean(eyaw))
 				  << ", \"ba_maps\": " << tracks.size() << ", \"ba_tracks_mean\": " << jsonNumber(mean(tracks), !tracks.empty())
 				  << ", \"ba_rms_before_m\": " << jsonNumber(mean(rms0), !rms0.empty())
 				  << ", \"ba_rms_after_m\": " << jsonNumber(mean(rms1), !rms1.empty()) << "}\n";
