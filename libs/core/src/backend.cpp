@@ -23,14 +23,14 @@ double threadCpuSeconds()
 
 Backend::Backend(
 	MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer, const BackendSettings& s,
-	RunResult& res, mrpt::system::COutputLogger& log, bool threaded)
+	RunResult& res, mrpt::system::COutputLogger& log, bool waitForEachKeyframe)
 	: mapManager_(mapManager),
 	  loopDetector_(loopDetector),
 	  optimizer_(optimizer),
 	  s_(s),
 	  res_(res),
 	  log_(log),
-	  threaded_(threaded)
+	  waitForEachKeyframe_(waitForEachKeyframe)
 {
 	poses_.live = [this](uint64_t id) -> const mrpt::poses::CPose3D* {
 		// A copy taken under the lock: the optimizer may rewrite the node right after.
@@ -42,7 +42,7 @@ Backend::Backend(
 		return &copy;
 	};
 	if (mapManager_) poses_.prior = &mapManager_->map().priorPoses;
-	if (threaded_) worker_ = std::thread([this] { workerLoop(); });
+	worker_ = std::thread([this] { workerLoop(); });
 }
 
 Backend::~Backend()
@@ -66,18 +66,15 @@ std::string Backend::error() const
 
 void Backend::submit(KeyframeJob job)
 {
-	if (!threaded_)
-	{
-		const double c0 = threadCpuSeconds();
-		process(job);
-		cpu_s_ += threadCpuSeconds() - c0;
-		return;
-	}
 	{
 		std::lock_guard<std::mutex> lk(queueMutex_);
 		queue_.push_back(std::move(job));
 	}
 	queueCv_.notify_one();
+	if (!waitForEachKeyframe_) return;
+	std::unique_lock<std::mutex> lk(queueMutex_);
+	idleCv_.wait(lk, [this] { return queue_.empty() && !busy_; });
+	if (!error_.empty()) throw std::runtime_error(error_);
 }
 
 void Backend::workerLoop()

@@ -1,8 +1,8 @@
 // The engine's back end (private to libs/core): mapping and loop closing for each keyframe,
-// then online pose-graph optimization. Paper, "Mapping" and "Loop Closure": they run beside
-// the tracking. In batch mode each keyframe's work is done at once, on the caller's thread,
-// so a run is deterministic; in real-time mode a worker thread does it and the tracking never
-// waits for it (except to relocalize, which reads the map).
+// then online pose-graph optimization, on a worker thread beside the tracking (paper,
+// "Mapping" and "Loop Closure"). In batch mode the tracking hands a keyframe over and waits
+// for it to be done (a fixed point), so a run is deterministic; in real-time mode it never
+// waits (except to relocalize, which reads the map).
 #pragma once
 
 #include <rasterslam/core/engine.h>
@@ -36,7 +36,7 @@ class Backend
    public:
 	Backend(
 		MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer, const BackendSettings& s,
-		RunResult& res, mrpt::system::COutputLogger& log, bool threaded);
+		RunResult& res, mrpt::system::COutputLogger& log, bool waitForEachKeyframe);
 	~Backend();
 	Backend(const Backend&) = delete;
 	Backend& operator=(const Backend&) = delete;
@@ -48,7 +48,8 @@ class Backend
 	/** Guards the map and the place index: the tracking locks it to relocalize. */
 	std::mutex& mapMutex() { return mapMutex_; }
 
-	/** Hands a keyframe over (batch: processed before returning). */
+	/** Hands a keyframe over; in batch mode returns once it is done, throwing the back end's
+	 *  error if it failed. */
 	void submit(KeyframeJob job);
 	/** Waits for every submitted keyframe (and ends the worker), then finishes the open
 	 *  local map. */
@@ -86,8 +87,7 @@ class Backend
 	double cpu_s_ = 0;
 	std::string error_;
 
-	// real-time mode
-	bool threaded_ = false;
+	bool waitForEachKeyframe_ = true;
 	std::thread worker_;
 	mutable std::mutex queueMutex_;
 	std::condition_variable queueCv_, idleCv_;

@@ -216,13 +216,13 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	// Keyframe ids continue those of a loaded map: unique across its sessions.
 	mrpt::graphs::TNodeID nextNode = mapManager_ ? mapManager_->map().nextKeyframeId() : 0;
 	graph.root = nextNode;
-	// Mapping and loop closing: on their own thread in real time, in step otherwise.
+	// Mapping and loop closing: on their own thread; in batch mode in step with the tracking.
 	detail::BackendSettings bs;
 	bs.optimizeOnline = optimizeOnline_;
 	bs.optimizeEveryKeyframes = optimizeEveryKeyframes_;
 	bs.testCorruptLoops = testCorruptLoops_;
 	detail::Backend backend(
-		mapManager_.get(), loopDetector_.get(), optimizer_.get(), bs, res, *this, opts.realtime);
+		mapManager_.get(), loopDetector_.get(), optimizer_.get(), bs, res, *this, !opts.realtime);
 	const PoseView& poses = backend.poses();
 	const double cpu0 = detail::threadCpuSeconds();
 	bool lostSinceKf = false;
@@ -486,13 +486,13 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			job.record = res.scans.size();
 			if (opts.realtime)
 			{
-				// The worker keeps its own copies; the tracking goes on with the next scan.
+				// The worker keeps its own copies: the tracking goes on with the next scan.
 				job.scan = std::make_shared<const Scan>(*scan);
 				if (rasterPtr) job.raster = std::make_shared<const RasterFrame>(raster);
 			}
 			else
 			{
-				// Done before this scan ends: no copy needed.
+				// Done before submit() returns: no copy needed.
 				job.scan = std::shared_ptr<const Scan>(&*scan, [](const Scan*) {});
 				if (rasterPtr) job.raster = std::shared_ptr<const RasterFrame>(rasterPtr, [](const RasterFrame*) {});
 			}
@@ -540,7 +540,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		}
 	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();
 	res.cpuBackend_s = backend.cpuSeconds();
-	res.cpuTracking_s = detail::threadCpuSeconds() - cpu0 - (opts.realtime ? 0.0 : res.cpuBackend_s);
+	res.cpuTracking_s = detail::threadCpuSeconds() - cpu0;
 
 	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))
 	{
