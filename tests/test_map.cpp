@@ -5,6 +5,7 @@
 #include <mrpt/io/CMemoryStream.h>
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/map/map.h>
+#include <rasterslam/map/local_map_store.h>
 
 #include <fstream>
 #include <random>
@@ -24,7 +25,7 @@ LocalMap::Ptr makeLocalMap(uint64_t id, std::vector<uint64_t> kfs, std::mt19937&
 	lm->keyframes = std::move(kfs);
 	lm->createdStamp = 100.5 + static_cast<double>(id);
 	lm->updatedStamp = lm->createdStamp + 2.25;
-	lm->online = id % 2 == 0;
+	lm->online = true;
 	std::uniform_real_distribution<float> u(-30, 30);
 	for (int i = 0; i < 50; i++)
 	{
@@ -76,6 +77,9 @@ TEST(MapModel, LocalMapRoundTripAndVersion)
 	EXPECT_EQ(back->keyframeIndex(12), 2);
 	EXPECT_EQ(back->keyframeIndex(13), -1);
 	LocalMap other = *lm;
+	other.online = false;
+	EXPECT_FALSE(other == *lm);  // ...and at the online flag
+	other = *lm;
 	other.observers[3] ^= 8;
 	EXPECT_FALSE(other == *lm);  // operator== looks at the observers
 
@@ -216,4 +220,82 @@ TEST(MapModel, DamagedAndOldMapsAreRefused)
 	fs::remove(file);
 	fs::create_directories(file);
 	expectError("is not a file");
+}
+
+TEST(MapModel, OfflineStoreRoundTripChecksumAndOnDemandLoading)
+{
+	const test::ScopedTempDir dir("store");
+	std::mt19937 rng(5);
+	const LocalMapStore store((dir / "offline").string());
+	auto lm = makeLocalMap(12, {40, 41, 42}, rng);
+	lm->online = false;
+	EXPECT_FALSE(store.contains(12));
+	EXPECT_GT(store.save(*lm), 50u * (12 + 32 + 4));
+	EXPECT_TRUE(store.contains(12));
+	const auto back = store.load(12);
+	EXPECT_TRUE(*back == *lm);
+	for (const auto& e : fs::directory_iterator(store.dir()))
+		EXPECT_EQ(e.path().filename().string(), "000012.rslm");  // no temporary left
+
+	auto expectError = [&](uint64_t id, const std::string& what) {
+		try
+		{
+			store.load(id);
+			ADD_FAILURE() << "no error";
+		}
+		catch (const std::runtime_error& e)
+		{
+			const std::string msg = e.what();
+			EXPECT_NE(msg.find(store.pathOf(id)), std::string::npos) << msg;
+			EXPECT_NE(msg.find(what), std::string::npos) << msg;
+		}
+	};
+	expectError(13, "no such file");
+	// One flipped bit in the payload fails the checksum.
+	{
+		std::fstream f(store.pathOf(12), std::ios::in | std::ios::out | std::ios::binary);
+		f.seekg(100);
+		char c = 0;
+		f.read(&c, 1);
+		c ^= 4;
+		f.seekp(100);
+		f.write(&c, 1);
+	}
+	expectError(12, "checksum mismatch");
+	// A cut file is refused before anything is allocated from its length.
+	store.save(*lm);
+	fs::resize_file(store.pathOf(12), fs::file_size(store.pathOf(12)) - 10);
+	expectError(12, "does not match the file size");
+	// A file renamed to another id holds the wrong map.
+	store.save(*lm);
+	fs::rename(store.pathOf(12), store.pathOf(14));
+	expectError(14, "holds local map 12");
+
+	// The map reads an offline local map from its store on demand, and saves it whole.
+	Map m;
+	m.offline = std::make_shared<LocalMapStore>(store.dir());
+	store.save(*lm);
+	auto stub = std::make_shared<LocalMap>();
+	stub->id = 12;
+	stub->keyframes = lm->keyframes;
+	stub->online = false;
+	m.localMaps[12] = stub;
+	std::map<uint64_t, mrpt::poses::CPose3D> poses;
+	for (const auto k : lm->keyframes)
+	{
+		auto kf = std::make_shared<Keyframe>();
+		kf->id = k;
+		m.keyframes[k] = kf;
+		poses[k] = mrpt::poses::CPose3D(static_cast<double>(k), 0, 0, 0, 0, 0);
+	}
+	EXPECT_EQ(m.onlineCount(), 0u);
+	ASSERT_TRUE(m.data(12));
+	EXPECT_EQ(m.data(12)->points(), 50u);
+	EXPECT_EQ(m.data(12).get(), m.data(12).get());  // the second read comes from the cache
+	PoseView v;
+	v.prior = &poses;
+	saveMap(m, v, (dir / "map").string());
+	const Map back2 = loadMap((dir / "map").string());
+	EXPECT_TRUE(*back2.localMaps.at(12) == *lm);
+	EXPECT_FALSE(back2.localMaps.at(12)->online);
 }

@@ -308,7 +308,14 @@ int runCommand(int argc, char** argv)
 		if (!res.optimizer.edgeWeights.empty())
 			summary["loop_edges_downweighted"] = static_cast<uint64_t>(downweighted);
 	}
-	if (engine->mapManager()) summary["map_memory_mb"] = engine->mapManager()->map().memoryBytes() / 1e6;
+	if (engine->mapManager())
+	{
+		const auto& m = engine->mapManager()->map();
+		summary["map_memory_mb"] = m.memoryBytes() / 1e6;
+		counts["local_maps_online"] = static_cast<uint64_t>(m.onlineCount());
+		counts["local_maps_offline"] = static_cast<uint64_t>(m.localMaps.size() - m.onlineCount());
+		info["counts"] = counts;
+	}
 	summary["path_length_m"] = pathLen;
 	std::optional<double> ate;
 	if (!res.scans.empty() &&

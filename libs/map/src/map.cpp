@@ -40,6 +40,28 @@ mrpt::poses::CPose3D PoseView::at(uint64_t keyframe) const
 uint64_t Map::nextKeyframeId() const { return keyframes.empty() ? 0 : keyframes.rbegin()->first + 1; }
 uint64_t Map::nextLocalMapId() const { return localMaps.empty() ? 0 : localMaps.rbegin()->first + 1; }
 
+LocalMap::ConstPtr Map::data(uint64_t localMap) const
+{
+	const auto& lm = localMaps.at(localMap);
+	if (lm->online) return lm;
+	std::lock_guard<std::mutex> lk(cache_.mutex);
+	for (const auto& c : cache_.maps)
+		if (c->id == localMap) return c;
+	if (!offline) throw std::runtime_error("local map " + std::to_string(localMap) + " is offline and there is no store");
+	LocalMap::ConstPtr loaded = offline->load(localMap);
+	// A loop query verifies a handful of candidates: keep the last few, not the store.
+	cache_.maps.push_back(loaded);
+	if (cache_.maps.size() > 8) cache_.maps.pop_front();
+	return loaded;
+}
+
+std::size_t Map::onlineCount() const
+{
+	std::size_t n = 0;
+	for (const auto& [id, lm] : localMaps) n += lm->online;
+	return n;
+}
+
 std::vector<uint64_t> Map::localMapsOf(uint64_t keyframe) const
 {
 	std::vector<uint64_t> out;
@@ -80,7 +102,8 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 			a << out;
 		}
 		a << static_cast<uint64_t>(map.localMaps.size());
-		for (const auto& [id, lm] : map.localMaps) a << *lm;
+		// Offline local maps are read back one at a time: every observation is kept.
+		for (const auto& [id, lm] : map.localMaps) a << *map.data(id);
 		a << map.graph << map.placeIndexClass << map.placeIndex;
 	}
 	catch (...)
@@ -94,8 +117,9 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 	const auto tmpDir = fs::path(dir) / (".localmaps.tmp-" + std::to_string(::getpid()));
 	fs::remove_all(tmpDir);
 	fs::create_directories(tmpDir);
-	for (const auto& [id, lm] : map.localMaps)
+	for (const auto& [id, stub] : map.localMaps)
 	{
+		const auto lm = map.data(id);
 		if (lm->imagePng.empty()) continue;
 		const auto name = mrpt::format("%04llu.png", static_cast<unsigned long long>(id));
 		std::ofstream o(tmpDir / name, std::ios::binary);

@@ -238,9 +238,11 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		{
 			const auto it = map.localMaps.find(entryMap_.at(r.entry));
 			if (it == map.localMaps.end()) continue;  // not in this map (cannot happen unless removed)
-			const auto& lm = *it->second;
-			if (lm.updatedStamp > kf.stamp - excludeRecent_s_) continue;  // recent: not a loop
+			if (it->second->updatedStamp > kf.stamp - excludeRecent_s_) continue;  // recent: not a loop
 			if (examined++ >= maxCandidates_) break;
+			// An offline local map is read from the store for the verification.
+			const auto data = map.data(it->first);
+			const auto& lm = *data;
 			LoopDecision d;
 			d.queryStamp = kf.stamp;
 			d.score = norm > 1e-6 ? r.score / norm : 0;

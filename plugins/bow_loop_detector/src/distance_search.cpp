@@ -53,10 +53,11 @@ void BowLoopDetector::searchByDistance(
 	{
 		LoopDecision d;
 		d.queryStamp = kf.stamp;
-		const auto v = verify(q, *c.lm, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
+		const auto data = map.data(c.lm->id);  // offline: read from the store
+		const auto v = verify(q, *data, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
 		// No BOW score here: the share of features that are inliers ranks the candidates.
 		d.score = q.pts.empty() ? 0 : static_cast<double>(v.fit.inliers.size()) / static_cast<double>(q.pts.size());
 		d.reason = v.fit.ok ? "ok" : "inliers";
-		consider(d, v, *c.lm, q, kf, map, poses, true, best, bestDecision);
+		consider(d, v, *data, q, kf, map, poses, true, best, bestDecision);
 	}
 }

@@ -9,6 +9,10 @@
 #include <rasterslam/mapping/local_ba.h>
 #include <rasterslam/raster/elevation_image.h>
 
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
 namespace rasterslam
@@ -24,6 +28,7 @@ class LocalMapManager : public MapManager
 	void loopAccepted(uint64_t fromKf, uint64_t toKf, double stamp) override;
 	const Map& map() const override { return map_; }
 	void loadMap(const std::string& dir) override;
+	~LocalMapManager() override;
 	void saveMap(
 		const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
 		const std::vector<uint8_t>& placeIndex) override;
@@ -36,6 +41,12 @@ class LocalMapManager : public MapManager
 	void finishOpen(const PoseView& poses, MappingUpdate& up, bool continues);
 	/** Drops what a keyframe no longer needs once all its local maps are finished. */
 	void release(uint64_t kf);
+	/** Paper, "Map Management / Culling": local maps farther along the route than
+	 *  cull_distance_m, and the oldest past max_online_maps, leave the online graph. */
+	void cull();
+	/** Moves a local map to the offline store, leaving a stub with its labels. */
+	void goOffline(uint64_t localMap, const char* why);
+	LocalMapStore& store();
 
 	// parameters
 	int keyframesPerMap_ = 5;
@@ -47,6 +58,11 @@ class LocalMapManager : public MapManager
 	mapping::LocalBaParams ba_;
 	raster::RasterParams mapRaster_;
 	features::OrbParams mapOrb_;
+	double cullDistance_m_ = 300;
+	bool cullOnLoop_ = true;
+	int maxOnlineMaps_ = 64;
+	std::string offlineDir_;
+	bool ownOfflineDir_ = false;  //!< a temporary folder of this run, removed at the end
 
 	// state
 	Map map_;
@@ -57,6 +73,10 @@ class LocalMapManager : public MapManager
 	std::map<uint64_t, std::vector<PointXYZI>> clouds_;  //!< non-ground points of open keyframes
 	std::vector<uint64_t> pendingLoops_;  //!< local maps a keyframe of the open map closed a loop with
 	std::unique_ptr<features::OrbExtractor> orb_;
+	double route_m_ = 0;  //!< distance travelled, along the keyframes
+	std::optional<mrpt::poses::CPose3D> lastKfPose_;
+	std::map<uint64_t, double> routeAt_;  //!< route distance when each online local map was finished
+	std::size_t culledByDistance_ = 0, culledByLoop_ = 0, culledByCount_ = 0;
 };
 }  // namespace rasterslam
 
@@ -90,6 +110,12 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	mapRaster_.belowGround_m = 1e6;
 	mapOrb_.numFeatures = p.getInt("map_features", 3000);
 	mapOrb_.levels = 3;
+	cullDistance_m_ = p.getDouble("cull_distance_m", cullDistance_m_);
+	cullOnLoop_ = p.getBool("cull_on_loop", cullOnLoop_);
+	maxOnlineMaps_ = p.getInt("max_online_maps", maxOnlineMaps_);
+	offlineDir_ = p.getString("offline_dir", "");
+	if (cullDistance_m_ < 0) throw ConfigError(p.context() + ".cull_distance_m: must be >= 0 (0: never)");
+	if (maxOnlineMaps_ < 0) throw ConfigError(p.context() + ".max_online_maps: must be >= 0 (0: no bound)");
 	if (keyframesPerMap_ < 1 || keyframesPerMap_ > static_cast<int>(LocalMap::kMaxKeyframes))
 		throw ConfigError(p.context() + ".keyframes_per_map: must be in 1..32");
 	if (!(maxExtent_m_ > 0)) throw ConfigError(p.context() + ".max_extent_m: must be > 0");
@@ -107,6 +133,82 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	pendingLoops_.clear();
 	lastLocalMap_.reset();
 	openSharesFirst_ = false;
+	route_m_ = 0;
+	lastKfPose_.reset();
+	routeAt_.clear();
+}
+
+LocalMapManager::~LocalMapManager()
+{
+	if (ownOfflineDir_ && map_.offline)
+	{
+		std::error_code ec;
+		std::filesystem::remove_all(map_.offline->dir(), ec);
+	}
+}
+
+LocalMapStore& LocalMapManager::store()
+{
+	if (!map_.offline)
+	{
+		auto dir = offlineDir_;
+		if (dir.empty())
+		{
+			// Nothing asked to keep it: a folder of this run, removed when it ends.
+			static std::atomic<int> counter{0};
+			dir = (std::filesystem::temp_directory_path() /
+				   mrpt::format("rasterslam-offline-%d-%d", static_cast<int>(::getpid()), counter++))
+					  .string();
+			ownOfflineDir_ = true;
+		}
+		map_.offline = std::make_shared<LocalMapStore>(dir);
+	}
+	return *map_.offline;
+}
+
+void LocalMapManager::goOffline(uint64_t localMap, const char* why)
+{
+	auto& lm = map_.localMaps.at(localMap);
+	if (!lm->online) return;
+	LocalMap copy = *lm;
+	copy.online = false;
+	store().save(copy);
+	auto stub = std::make_shared<LocalMap>();
+	stub->id = lm->id;
+	stub->session = lm->session;
+	stub->keyframes = lm->keyframes;
+	stub->createdStamp = lm->createdStamp;
+	stub->updatedStamp = lm->updatedStamp;
+	stub->online = false;
+	stub->imageResolution_m = lm->imageResolution_m;
+	stub->imageExtent_m = lm->imageExtent_m;
+	lm = stub;
+	routeAt_.erase(localMap);
+	MRPT_LOG_DEBUG_FMT("local map %llu offline (%s)", static_cast<unsigned long long>(localMap), why);
+}
+
+void LocalMapManager::cull()
+{
+	if (cullDistance_m_ > 0)
+		for (auto it = routeAt_.begin(); it != routeAt_.end();)
+		{
+			const auto [id, at] = *it++;
+			if (route_m_ - at > cullDistance_m_)
+			{
+				goOffline(id, "distance");
+				++culledByDistance_;
+			}
+		}
+	if (maxOnlineMaps_ > 0)
+		while (routeAt_.size() > static_cast<std::size_t>(maxOnlineMaps_))
+		{
+			// The one finished longest ago along the route.
+			auto oldest = routeAt_.begin();
+			for (auto it = routeAt_.begin(); it != routeAt_.end(); ++it)
+				if (it->second < oldest->second) oldest = it;
+			goOffline(oldest->first, "count");
+			++culledByCount_;
+		}
 }
 
 MappingUpdate LocalMapManager::addKeyframe(
@@ -124,6 +226,9 @@ MappingUpdate LocalMapManager::addKeyframe(
 	k->scanIndex = kf.scanIndex;
 	k->stamp = kf.stamp;
 	map_.keyframes[k->id] = k;
+	const auto pose = poses.at(k->id);
+	if (lastKfPose_ && !kf.afterLoss) route_m_ += pose.distanceTo(*lastKfPose_);
+	lastKfPose_ = pose;
 	auto& cloud = clouds_[k->id];
 	if (raster)
 		for (const auto idx : raster->pixelToPoint)
@@ -157,7 +262,17 @@ void LocalMapManager::loopAccepted(uint64_t fromKf, uint64_t /*toKf*/, double /*
 {
 	// The query keyframe is in the open local map: the edge is made when that map is done.
 	const auto maps = map_.localMapsOf(fromKf);
-	if (!maps.empty()) pendingLoops_.push_back(maps.front());
+	if (maps.empty()) return;
+	pendingLoops_.push_back(maps.front());
+	// Paper, "Map Update": the revisited place gets a new local map from the current scans
+	// (the open one); the older one leaves the online graph, its database entry kept.
+	if (cullOnLoop_)
+		for (const auto m : maps)
+			if (map_.localMaps.at(m)->online && routeAt_.count(m))
+			{
+				goOffline(m, "loop");
+				++culledByLoop_;
+			}
 }
 
 void LocalMapManager::release(uint64_t kf)
@@ -272,7 +387,9 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Loop, lm->updatedStamp);
 	pendingLoops_.clear();
 	map_.localMaps[lm->id] = lm;
+	routeAt_[lm->id] = route_m_;
 	up.finished.push_back(std::move(fin));
+	cull();
 	MRPT_LOG_DEBUG_FMT(
 		"local map %llu: %zu keyframes, %zu points, BA %s (%zu tracks, rms %.3f -> %.3f m)",
 		static_cast<unsigned long long>(lm->id), ids.size(), lm->points(), ba.ran ? "ran" : "skipped", ba.tracks,
@@ -300,6 +417,13 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 void LocalMapManager::loadMap(const std::string& dir)
 {
 	map_ = rasterslam::loadMap(dir);
+	// The earlier sessions' local maps wait in the offline store: loop closure and
+	// relocalization read them on demand, and memory does not grow with the map.
+	for (auto& [id, lm] : map_.localMaps)
+	{
+		lm->online = true;  // as loaded: points and image in memory, until stored
+		goOffline(id, "prior session");
+	}
 	session_ = map_.sessions;
 	map_.sessions = session_ + 1;
 	open_.clear();

@@ -4,6 +4,11 @@
 #include <mrpt/poses/CPose3D.h>
 #include <rasterslam/map/keyframe.h>
 #include <rasterslam/map/local_map.h>
+#include <rasterslam/map/local_map_store.h>
+
+#include <deque>
+#include <memory>
+#include <mutex>
 
 #include <functional>
 #include <map>
@@ -32,7 +37,11 @@ class Map
 {
    public:
 	std::map<uint64_t, Keyframe::Ptr> keyframes;
+	/** Every local map. One that left the online graph (online == false) is a stub here:
+	 *  labels and stamps only; its points and image are in `offline`. */
 	std::map<uint64_t, LocalMap::Ptr> localMaps;
+	/** The offline store (null: nothing went offline). */
+	std::shared_ptr<LocalMapStore> offline;
 	LocalMapGraph graph;
 	/** Poses of the keyframes loaded from a saved map (fixed in this session). */
 	std::map<uint64_t, mrpt::poses::CPose3D> priorPoses;
@@ -45,10 +54,32 @@ class Map
 
 	uint64_t nextKeyframeId() const;
 	uint64_t nextLocalMapId() const;
+	/** A local map with its points and image: the online one, or one loaded from the offline
+	 *  store on demand (the last few loaded are kept). Throws naming the file on damage. */
+	LocalMap::ConstPtr data(uint64_t localMap) const;
+	/** Online local maps. */
+	std::size_t onlineCount() const;
 	/** The local maps that hold a keyframe (one, or two where consecutive ones overlap). */
 	std::vector<uint64_t> localMapsOf(uint64_t keyframe) const;
 	/** Bytes held in memory by keyframes and local maps. */
 	std::size_t memoryBytes() const;
+
+   private:
+	/** The local maps last read from the offline store; a copy of the map starts without. */
+	struct Cache
+	{
+		std::mutex mutex;
+		std::deque<LocalMap::ConstPtr> maps;
+		Cache() = default;
+		Cache(const Cache&) {}
+		Cache& operator=(const Cache&)
+		{
+			std::lock_guard<std::mutex> lk(mutex);
+			maps.clear();
+			return *this;
+		}
+	};
+	mutable Cache cache_;
 };
 
 /** Writes the map as `dir/map.rsmap` (gzip MRPT archive: magic, version, keyframes with the
