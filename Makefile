@@ -27,7 +27,7 @@ $(DEMO_RAWLOG): $(DEMO_SCENARIO) | build
 
 demo: build
 	@$(MAKE) --no-print-directory $(DEMO_RAWLOG)
-	$(BUILD)/bin/rasterslam run --rawlog $(DEMO_RAWLOG) --config $(DEMO_CONFIG) --out $(DEMO_OUT) --map-out $(DEMO_OUT)/map
+	$(BUILD)/bin/rasterslam run --rawlog $(DEMO_RAWLOG) --config $(DEMO_CONFIG) --out $(DEMO_OUT) --map-out $(DEMO_OUT)/map --overwrite
 	$(BUILD)/bin/rasterslam-eval traj --gt $(DEMO_OUT)/groundtruth.tum --est $(DEMO_OUT)/trajectory.tum
 	$(BUILD)/bin/rasterslam-eval loops --loops $(DEMO_OUT)/loops.txt --gt $(DEMO_OUT)/groundtruth.tum --plot $(DEMO_OUT)/loops-pr.png
 	@echo "demo: outputs in $(DEMO_OUT)/ (trajectory.tum, trajectory.kitti, loops.txt, timings.csv, run.yaml, map/)"

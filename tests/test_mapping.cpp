@@ -253,3 +253,50 @@ TEST(Mapping, UpdateOnRevisitAndCullingKeepEveryLocalMap)
 	std::ifstream a(dir / "loop/trajectory.tum"), b(dir / "cull/trajectory.tum");
 	EXPECT_EQ(std::string((std::istreambuf_iterator<char>(a)), {}), std::string((std::istreambuf_iterator<char>(b)), {}));
 }
+
+TEST(Mapping, SessionsShareAMapWithUniqueIdsAndAMapIsNotReplacedByAccident)
+{
+	const test::ScopedTempDir dir("mapping");
+	const auto cfg = slamConfig(dir.path(), false, "");
+	const auto map = (dir / "map").string();
+	auto r = run(cfg, dir / "s1", " --last 150 --map-out " + map);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	std::ifstream f1(mapFilePath(map), std::ios::binary);
+	const std::string before((std::istreambuf_iterator<char>(f1)), {});
+
+	// Another session's --map-out over it, without --map-in of it: refused, map untouched.
+	r = run(cfg, dir / "s2", " --last 150 --map-out " + map);
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("holds a map already"), std::string::npos) << r.output;
+	std::ifstream f2(mapFilePath(map), std::ios::binary);
+	EXPECT_EQ(std::string((std::istreambuf_iterator<char>(f2)), {}), before);
+
+	// Extending it: the second session's keyframes and local maps get ids of their own.
+	r = run(cfg, dir / "s2", " --first 20 --last 170 --map-in " + map + " --map-out " + map);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const Map two = loadMap(map);
+	EXPECT_EQ(two.sessions, 2u);
+	const auto k1 = static_cast<std::size_t>(yamlNumber(dir / "s1/run.yaml", "keyframes"));
+	const auto k2 = static_cast<std::size_t>(yamlNumber(dir / "s2/run.yaml", "keyframes"));
+	EXPECT_EQ(two.keyframes.size(), k1 + k2);
+	std::size_t inSession[2] = {0, 0};
+	for (const auto& [id, k] : two.keyframes)
+	{
+		ASSERT_LT(k->session, 2u);
+		++inSession[k->session];
+		EXPECT_EQ(id, k->id);
+	}
+	EXPECT_EQ(inSession[0], k1);
+	EXPECT_EQ(inSession[1], k2);
+	const auto info = test::runCommand(test::bin("rasterslam") + " map info " + map);
+	ASSERT_EQ(info.exitCode, 0) << info.output;
+	EXPECT_NE(info.output.find("sessions     : 2"), std::string::npos) << info.output;
+	EXPECT_NE(info.output.find("session 1: " + std::to_string(k2) + " keyframes"), std::string::npos) << info.output;
+
+	// --overwrite replaces it with a one-session map.
+	r = run(cfg, dir / "s3", " --last 100 --map-out " + map + " --overwrite");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_EQ(loadMap(map).sessions, 1u);
+	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map info " + (dir / "nope").string()).exitCode, 1);
+	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map bogus").exitCode, 2);
+}

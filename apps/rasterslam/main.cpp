@@ -19,6 +19,7 @@ usage:
                  [--realtime [--rate R]] [--sensor LABEL] [--save-images]
                  [--map-in DIR] [--map-out DIR] [--quiet | --verbose]
   rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] [--first N] [--last N]
+  rasterslam map info DIR
   rasterslam list-plugins
   rasterslam --help | --version
 
@@ -35,9 +36,12 @@ run options:
   --save-images   write each scan's elevation image to DIR/images/NNNNNN.png
   --map-in DIR    start in a map saved by --map-out: the first scan is relocalized in it
                   (poses are then in that map's frame) and mapping goes on
-  --map-out DIR   save what relocalization needs (keyframes, local-map images, the BOW
-                  database: DIR/map.rsmap, DIR/localmaps/*.png); needs a loop_detector
+  --map-out DIR   save the map (keyframes, local maps, their graph, the place index:
+                  DIR/map.rsmap, DIR/localmaps/*.png); needs a map_manager. A map already
+                  there is only replaced when it is the --map-in map or with --overwrite
+  --overwrite     let --map-out replace a map that is not the --map-in one
 
+map info: sessions, local maps online and offline, keyframes, sizes and time span of a map.
 relocalize: locate every scan of FILE in the map saved in DIR, with no pose prior; writes
   DIR2/relocalization.txt (stamp, status, reason, local map, keyframe, score, inliers, pose
   x y z qx qy qz qw in the map frame). Default config: share/rasterslam/config/slam.yaml.
@@ -93,5 +97,6 @@ int main(int argc, char** argv)
 	if (cmd == "list-plugins") return listPlugins();
 	if (cmd == "run") return cli::runCommand(argc - 1, argv + 1);
 	if (cmd == "relocalize") return cli::relocalizeCommand(argc - 1, argv + 1);
+	if (cmd == "map") return cli::mapCommand(argc - 1, argv + 1);
 	cli::usageError("unknown command '" + cmd + "'");
 }

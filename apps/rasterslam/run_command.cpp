@@ -120,7 +120,7 @@ int runCommand(int argc, char** argv)
 {
 	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
 	RunOptions opts;
-	bool quiet = false, verbose = false, saveImages = false;
+	bool quiet = false, verbose = false, saveImages = false, overwrite = false;
 	for (int i = 1; i < argc; i++)
 	{
 		const std::string a = argv[i];
@@ -151,6 +151,8 @@ int runCommand(int argc, char** argv)
 			sensor = value();
 		else if (a == "--save-images")
 			saveImages = true;
+		else if (a == "--overwrite")
+			overwrite = true;
 		else if (a == "--map-out")
 			mapOut = value();
 		else if (a == "--map-in")
@@ -162,7 +164,7 @@ int runCommand(int argc, char** argv)
 		else if (a == "-h" || a == "--help")
 		{
 			std::cout << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
-						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in DIR] [--map-out DIR] [--quiet|--verbose]\n"
+						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in DIR] [--map-out DIR [--overwrite]] [--quiet|--verbose]\n"
 						 "(rasterslam --help explains every option)\n";
 			return 0;
 		}
@@ -182,7 +184,19 @@ int runCommand(int argc, char** argv)
 	try
 	{
 		io::ensureWritableDir(outDir);
-		if (!mapOut.empty()) io::ensureWritableDir(mapOut);
+		if (!mapOut.empty())
+		{
+			// A saved map is the work of earlier sessions: replace it only when it is the one this
+			// session extends, or when asked to.
+			std::error_code ec;
+			const bool exists = fs::exists(mapFilePath(mapOut), ec);
+			const bool same = !mapIn.empty() && fs::exists(mapIn, ec) && fs::equivalent(mapIn, mapOut, ec);
+			if (exists && !same && !overwrite)
+				throw std::runtime_error(
+					"--map-out " + mapOut + " holds a map already: pass --map-in " + mapOut +
+					" to extend it, or --overwrite to replace it");
+			io::ensureWritableDir(mapOut);
+		}
 		if (configPath.empty()) configPath = findDefaultConfig();
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);

@@ -29,6 +29,15 @@ const std::vector<std::string> kSections = {"plugins",		 "rasterizer", "odometry
 
 std::string rasterslamVersion() { return RASTERSLAM_VERSION; }
 
+double currentRssMb()
+{
+	std::ifstream f("/proc/self/status");
+	std::string line;
+	while (std::getline(f, line))
+		if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+	return -1;
+}
+
 double peakRssMb()
 {
 	std::ifstream f("/proc/self/status");
@@ -511,6 +520,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		// feed rounding back into every following scan.
 		T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : rec.T_kf_scan;
 		rec.ms.total = msSince(tScan) + readMs;
+		rec.rssMb = currentRssMb();
 		res.scans.push_back(rec);
 		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
 	}

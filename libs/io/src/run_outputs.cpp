@@ -60,12 +60,12 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 
 	std::string csv =
 		"index,stamp,points,status,inliers,keyframe,late,read_ms,rasterize_ms,odometry_ms,"
-		"mapping_ms,loop_ms,total_ms\n";
+		"mapping_ms,loop_ms,total_ms,rss_mb\n";
 	for (const auto& r : res.scans)
 		csv += mrpt::format(
-			"%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", r.index, r.stamp,
+			"%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f\n", r.index, r.stamp,
 			r.numPoints, toString(r.status), r.inliers, r.keyframe ? 1 : 0, r.late ? 1 : 0,
-			r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total);
+			r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total, r.rssMb);
 	files.emplace_back("timings.csv", csv);
 
 	if (!res.loopDecisions.empty())

@@ -34,6 +34,7 @@ struct ScanRecord
 	/** The pose the scan had when it was processed (what a robot would have acted on). */
 	mrpt::poses::CPose3D onlinePose;
 	StageTimes ms;
+	double rssMb = 0;  //!< resident memory of the process after the scan, MB
 	std::optional<mrpt::poses::CPose3D> groundTruth;
 };
 
@@ -137,6 +138,8 @@ class Engine : public mrpt::system::COutputLogger
 
 /** Resident set size high-water mark of this process, MB (from /proc/self/status). */
 double peakRssMb();
+/** Resident set size of this process now, MB. */
+double currentRssMb();
 
 std::string rasterslamVersion();
 
