@@ -16,7 +16,7 @@ using namespace rasterslam::bow;
 Database::EntryId Database::add(const BowVector& bow, const FeatureVector& fv)
 {
 	const EntryId id = next_++;
-	entries_[id] = Entry{bow, fv};
+	entries_[id] = Entry{{bow.begin(), bow.end()}, fv};
 	// Ids only grow, so every inverted list stays sorted by entry: remove() can bisect.
 	for (const auto& [w, v] : bow)
 		inverted_[w].emplace_back(id, v);
@@ -119,12 +119,12 @@ const FeatureVector& Database::featureVector(EntryId e) const
 	return it->second.fv;
 }
 
-const BowVector& Database::bowVector(EntryId e) const
+BowVector Database::bowVector(EntryId e) const
 {
 	const auto it = entries_.find(e);
 	if (it == entries_.end())
 		throw std::out_of_range("Database: no entry " + std::to_string(e));
-	return it->second.bow;
+	return BowVector(it->second.bow.begin(), it->second.bow.end());
 }
 
 uint8_t Database::serializeGetVersion() const
@@ -184,7 +184,7 @@ void Database::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 					if ((j > 0 && w <= last) || !std::isfinite(v))
 						bad("bag of words not sorted or weight not finite");
 					last = w;
-					e.bow.emplace_hint(e.bow.end(), w, v);
+					e.bow.emplace_back(w, v);
 				}
 				in >> nodes;
 				for (uint32_t j = 0; j < nodes; ++j)

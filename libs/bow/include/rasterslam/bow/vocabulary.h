@@ -112,13 +112,15 @@ class Database : public mrpt::serialization::CSerializable
 	bool contains(EntryId e) const { return entries_.count(e) != 0; }
 	std::size_t size() const { return entries_.size(); }
 	const FeatureVector& featureVector(EntryId e) const;
-	const BowVector& bowVector(EntryId e) const;
+	BowVector bowVector(EntryId e) const;
 	int directIndexLevelsUp() const { return levelsUp_; }
 
    private:
 	struct Entry
 	{
-		BowVector bow;
+		/** The entry's words as a sorted array: a map node per word would cost several times
+		 *  the memory for a database that lives as long as the map. */
+		std::vector<std::pair<WordId, double>> bow;
 		FeatureVector fv;
 	};
 	int levelsUp_ = 2;
