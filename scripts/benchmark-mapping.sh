@@ -78,6 +78,9 @@ for in in "${inputs[@]}"; do
   run "$rawlog" "$slam" "$WORK/$name-slam"
   row "slam (final)" "$WORK/$name-slam" "$odo"
   printf '  %-26s %50s\n' "slam (online poses)" "ATE $(printf '%.3f' "$(ate "$WORK/$name-slam" trajectory_online.tum)") m"
+  awk -F, 'NR>1{n++; r[n]=$14; t[n]=$13} END{a=int(n*2/21); if(a<1)a=1; m=0; for(i=int(n*0.9);i<=n;i++) if(r[i]>m) m=r[i];
+    s1=0; s2=0; k=int(n/10); for(i=1;i<=k;i++) s1+=t[i]; for(i=n-k+1;i<=n;i++) s2+=t[i];
+    printf "  %-26s RSS %.1f MB at scan %d (2/21 of the run), %.1f MB max in the last 10%%; ms/scan mean %.2f first 10%%, %.2f last 10%%\n", "slam over the run", r[a], a, m, s1/k, s2/k}' "$WORK/$name-slam/timings.csv"
   run "$rawlog" "$wrong" "$WORK/$name-wrong"
   row "5 % loops wrong ($(yamlv "$WORK/$name-wrong/run.yaml" corrupted_loops_test_hook || true))" "$WORK/$name-wrong" "$odo"
   run "$rawlog" "$wrong30" "$WORK/$name-wrong30"

@@ -300,3 +300,54 @@ TEST(Mapping, SessionsShareAMapWithUniqueIdsAndAMapIsNotReplacedByAccident)
 	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map info " + (dir / "nope").string()).exitCode, 1);
 	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map bogus").exitCode, 2);
 }
+
+TEST(Mapping, ASessionIsAnchoredOnlyWhenSeveralHitsAgree)
+{
+	const test::ScopedTempDir dir("mapping");
+	const auto map = (dir / "map").string();
+	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "s1", " --map-out " + map).exitCode, 0);
+	// Another town (the same scenario, another seed), with verification made lax enough
+	// (8 inliers) that wrong places pass it.
+	const auto other = (dir / "other.rawlog").string();
+	auto r = test::runCommand(
+		test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") + " --seed 99 -o " + other);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	auto lax = [&](int agreeing) {
+		const auto p = slamConfig(dir.path(), false, "  anchor_min_agreeing: " + std::to_string(agreeing) + "\n");
+		std::ifstream in(p);
+		std::string y((std::istreambuf_iterator<char>(in)), {});
+		y = std::regex_replace(y, std::regex("min_inliers: 25 "), "min_inliers: 8 ");
+		const auto out = dir / ("lax" + std::to_string(agreeing) + ".yaml");
+		std::ofstream(out) << y;
+		return out;
+	};
+	auto runOther = [&](const fs::path& cfg, const std::string& extra) {
+		return test::runCommand(
+			test::bin("rasterslam") + " run --rawlog " + other + " --config " + cfg.string() + " --quiet --out " +
+			(dir / "s2").string() + " --map-in " + map + extra);
+	};
+	// One hit is enough without the check: the other town is anchored in this map (wrongly).
+	r = runOther(lax(1), "");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_EQ(yamlNumber(dir / "s2/run.yaml", "prior_map_hits"), 1);
+	EXPECT_NE(r.output.find("rasterslam: located in the prior map"), std::string::npos) << r.output;
+	// With three agreeing hits required (the default) the wrong hits disagree: never anchored.
+	std::ifstream f1(mapFilePath(map), std::ios::binary);
+	const std::string before((std::istreambuf_iterator<char>(f1)), {});
+	r = runOther(lax(3), " --map-out " + map);
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("NOT located in the prior map"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("the map is not saved"), std::string::npos) << r.output;
+	EXPECT_GE(yamlNumber(dir / "s2/run.yaml", "prior_map_hits"), 2);
+	std::ifstream f2(mapFilePath(map), std::ios::binary);
+	EXPECT_EQ(std::string((std::istreambuf_iterator<char>(f2)), {}), before);  // the map is untouched
+	r = runOther(lax(3), " --require-localization");
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("--require-localization"), std::string::npos) << r.output;
+	// The same town again is anchored under the same lax settings.
+	r = test::runCommand(
+		test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() + " --first 20 --last 200 --config " + lax(3).string() +
+		" --quiet --out " + (dir / "s3").string() + " --map-in " + map + " --require-localization");
+	EXPECT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_NE(r.output.find("rasterslam: located in the prior map"), std::string::npos) << r.output;
+}

@@ -17,7 +17,8 @@ const char* kUsage = R"(rasterslam: lifelong 3D-LiDAR SLAM on rasterized elevati
 usage:
   rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] [--last N]
                  [--realtime [--rate R]] [--sensor LABEL] [--save-images]
-                 [--map-in DIR] [--map-out DIR] [--quiet | --verbose]
+                 [--map-in DIR [--require-localization]] [--map-out DIR [--overwrite]]
+                 [--quiet | --verbose]
   rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] [--first N] [--last N]
   rasterslam map info DIR
   rasterslam list-plugins
@@ -40,6 +41,8 @@ run options:
                   DIR/map.rsmap, DIR/localmaps/*.png); needs a map_manager. A map already
                   there is only replaced when it is the --map-in map or with --overwrite
   --overwrite     let --map-out replace a map that is not the --map-in one
+  --require-localization  with --map-in: exit 1 when the session is never located in the
+                  map (a session never located is not saved into it either way)
 
 map info: sessions, local maps online and offline, keyframes, sizes and time span of a map.
 relocalize: locate every scan of FILE in the map saved in DIR, with no pose prior; writes

@@ -120,7 +120,7 @@ int runCommand(int argc, char** argv)
 {
 	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
 	RunOptions opts;
-	bool quiet = false, verbose = false, saveImages = false, overwrite = false;
+	bool quiet = false, verbose = false, saveImages = false, overwrite = false, requireLocalization = false;
 	for (int i = 1; i < argc; i++)
 	{
 		const std::string a = argv[i];
@@ -153,6 +153,8 @@ int runCommand(int argc, char** argv)
 			saveImages = true;
 		else if (a == "--overwrite")
 			overwrite = true;
+		else if (a == "--require-localization")
+			requireLocalization = true;
 		else if (a == "--map-out")
 			mapOut = value();
 		else if (a == "--map-in")
@@ -164,7 +166,7 @@ int runCommand(int argc, char** argv)
 		else if (a == "-h" || a == "--help")
 		{
 			std::cout << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
-						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in DIR] [--map-out DIR [--overwrite]] [--quiet|--verbose]\n"
+						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in DIR] [--map-out DIR [--overwrite]] [--require-localization] [--quiet|--verbose]\n"
 						 "(rasterslam --help explains every option)\n";
 			return 0;
 		}
@@ -346,10 +348,21 @@ int runCommand(int argc, char** argv)
 		summary["ate_rmse_m"] = *ate;
 	}
 	if (!res.stopReason.empty()) summary["stopped_early"] = res.stopReason;
+	const bool unlocated = opts.relocalizeFirstScan && !res.localized;
+	if (opts.relocalizeFirstScan)
+	{
+		summary["localized_in_prior_map"] = res.localized;
+		summary["prior_map_hits"] = static_cast<uint64_t>(res.anchorHits);
+	}
+	if (unlocated && !mapOut.empty() && runError.empty())
+		runError = "the session was never located in the prior map " + mapIn +
+			": the map is not saved (it would hold two frames)";
+	else if (unlocated && requireLocalization && runError.empty())
+		runError = "the session was never located in the prior map " + mapIn + " (--require-localization)";
 	if (!runError.empty()) summary["error"] = runError;
 	info["summary"] = summary;
 
-	if (!mapOut.empty() && !res.scans.empty())
+	if (!mapOut.empty() && !res.scans.empty() && !unlocated)
 	{
 		try
 		{
@@ -383,6 +396,10 @@ int runCommand(int argc, char** argv)
 		percentile(total, 0.5), percentile(total, 0.95),
 		res.wall_s > 0 ? res.scans.size() / res.wall_s : 0.0, peakRssMb());
 	if (ate) std::printf("rasterslam: ATE against the rawlog's ground truth: %.3f m RMSE over %.1f m\n", *ate, pathLen);
+	if (opts.relocalizeFirstScan)
+		std::printf(
+			"rasterslam: %s in the prior map %s (%zu hits in earlier sessions)\n",
+			res.localized ? "located" : "NOT located", mapIn.c_str(), res.anchorHits);
 	if (!res.stopReason.empty())
 		std::fprintf(
 			stderr, "rasterslam: error: the input stopped early, outputs cover the %zu scans before: %s\n",

@@ -128,6 +128,12 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		optimizeOnline_ = p.getBool("optimize_online", optimizeOnline_);
 		optimizeEveryKeyframes_ = p.getInt("optimize_every_keyframes", optimizeEveryKeyframes_);
 		testCorruptLoops_ = p.getDouble("test_corrupt_loops", testCorruptLoops_);
+		anchorMinAgreeing_ = p.getInt("anchor_min_agreeing", anchorMinAgreeing_);
+		anchorAgree_m_ = p.getDouble("anchor_agree_m", anchorAgree_m_);
+		anchorAgree_deg_ = p.getDouble("anchor_agree_deg", anchorAgree_deg_);
+		if (anchorMinAgreeing_ < 1) throw ConfigError(source_ + ": key 'engine.anchor_min_agreeing' must be >= 1");
+		if (!(anchorAgree_m_ > 0) || !(anchorAgree_deg_ > 0))
+			throw ConfigError(source_ + ": keys 'engine.anchor_agree_m' and 'anchor_agree_deg' must be > 0");
 		if (optimizeEveryKeyframes_ < 1)
 			throw ConfigError(source_ + ": key 'engine.optimize_every_keyframes' must be >= 1");
 		if (!(testCorruptLoops_ >= 0 && testCorruptLoops_ <= 1))
@@ -235,6 +241,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	const PoseView& poses = backend.poses();
 	const double cpu0 = detail::threadCpuSeconds();
 	bool lostSinceKf = false;
+	std::vector<mrpt::poses::CPose3D> anchorHits;  // --map-in: candidate session-to-map transforms
 
 	const auto wall0 = Clock::now();
 	std::optional<double> firstStamp;
@@ -373,23 +380,51 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			// move everything tracked so far into the map's frame.
 			const auto t0 = Clock::now();
 			RelocalizationResult rl;
+			bool earlier = false;
 			{
 				std::lock_guard<std::mutex> lk(backend.mapMutex());
-				rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
+				const Map& map = mapManager_->map();
+				rl = loopDetector_->relocalize(*scan, *rasterPtr, map, poses);
+				// Only an earlier session's local map can anchor this one (its own are in its
+				// own frame).
+				earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
 			}
 			rec.ms.loop += msSince(t0);
-			if (rl.found)
+			if (earlier)
 			{
+				// Where this hit puts the session's frame in the map's. One hit is not enough: a
+				// wrong place can match as well as the right one, so the session is anchored only
+				// when engine.anchor_min_agreeing hits, at different keyframes, agree on it.
 				const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
-				std::lock_guard<std::mutex> lk(backend.graphMutex());
-				for (auto& [id, p] : graph.nodes) p = C + p;
-				lastKfPose = C + lastKfPose;
-				currPose = rl.pose;
-				anchored = true;
-				++res.relocalized;
-				MRPT_LOG_INFO_STREAM(
-					"scan " << scan->index << ": located in the prior map (local map " << rl.localMap << ", "
-							<< rl.inliers << " inliers)");
+				anchorHits.push_back(C);
+				std::size_t agreeing = 0;
+				for (const auto& h : anchorHits)
+				{
+					const auto d = h - C;
+					const double angle =
+						Eigen::AngleAxisd(d.getRotationMatrix().asEigen()).angle() * 180 / M_PI;
+					agreeing += d.norm() < anchorAgree_m_ && angle < anchorAgree_deg_;
+				}
+				res.anchorHits = anchorHits.size();
+				if (agreeing >= static_cast<std::size_t>(anchorMinAgreeing_))
+				{
+					std::lock_guard<std::mutex> lk(backend.graphMutex());
+					for (auto& [id, p] : graph.nodes) p = C + p;
+					lastKfPose = C + lastKfPose;
+					currPose = rl.pose;
+					anchored = true;
+					res.localized = true;
+					++res.relocalized;
+					MRPT_LOG_INFO_STREAM(
+						"scan " << scan->index << ": located in the prior map (local map " << rl.localMap << ", "
+								<< rl.inliers << " inliers; " << agreeing << " of " << anchorHits.size()
+								<< " hits agree)");
+				}
+				else
+					MRPT_LOG_INFO_STREAM(
+						"scan " << scan->index << ": a place in the prior map (local map " << rl.localMap << ", "
+								<< rl.inliers << " inliers): " << agreeing << " of " << anchorMinAgreeing_
+								<< " agreeing hits needed to anchor");
 			}
 			else
 			{

@@ -64,6 +64,10 @@ struct RunResult
 	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
 	std::size_t relocalized = 0, relocalizationFailures = 0;
 	std::size_t loopsToPriorMap = 0;  //!< loops found to a --map-in map (not graph edges yet)
+	/** --map-in: whether the session was located (anchored) in the prior map, and how many
+	 *  relocalization hits in earlier sessions it had. */
+	bool localized = false;
+	std::size_t anchorHits = 0;
 	std::size_t localMaps = 0;  //!< local maps finished in this run
 	std::size_t localBaRuns = 0;  //!< local maps refined by local BA
 	std::size_t onlineOptimizations = 0;  //!< pose-graph optimizations during the run
@@ -134,6 +138,8 @@ class Engine : public mrpt::system::COutputLogger
 	bool optimizeOnline_ = true;
 	int optimizeEveryKeyframes_ = 10;
 	double testCorruptLoops_ = 0;
+	int anchorMinAgreeing_ = 3;
+	double anchorAgree_m_ = 1.0, anchorAgree_deg_ = 3.0;
 };
 
 /** Resident set size high-water mark of this process, MB (from /proc/self/status). */
