@@ -297,6 +297,7 @@ int runCommand(int argc, char** argv)
 	counts["relocalized"] = static_cast<uint64_t>(res.relocalized);
 	counts["relocalization_failures"] = static_cast<uint64_t>(res.relocalizationFailures);
 	counts["loops_to_prior_map"] = static_cast<uint64_t>(res.loopsToPriorMap);
+	counts["prior_map_loop_edges"] = static_cast<uint64_t>(res.priorMapLoopEdges);
 	counts["local_maps"] = static_cast<uint64_t>(res.localMaps);
 	counts["local_ba_runs"] = static_cast<uint64_t>(res.localBaRuns);
 	counts["online_optimizations"] = static_cast<uint64_t>(res.onlineOptimizations);

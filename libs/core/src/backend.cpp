@@ -141,6 +141,12 @@ void Backend::writePoses(const std::map<mrpt::graphs::TNodeID, mrpt::poses::CPos
 	for (auto it = nodes.upper_bound(newest); it != nodes.end(); ++it) it->second = C + it->second;
 }
 
+void Backend::addFixedNode(mrpt::graphs::TNodeID id, const mrpt::poses::CPose3D& pose)
+{
+	res_.graph.nodes[id] = pose;
+	fixed_.insert(id);
+}
+
 void Backend::applyMapping(const MappingUpdate& up)
 {
 	if (!up.T_anchor_kf.empty())
@@ -177,15 +183,18 @@ void Backend::optimizeNow()
 	// The optimizer works on a copy, so the tracking can add keyframes meanwhile.
 	mrpt::graphs::CNetworkOfPoses3DInf g;
 	EdgeSet uncertain;
+	std::set<mrpt::graphs::TNodeID> fixed;
 	{
 		std::lock_guard<std::mutex> lk(graphMutex_);
 		g = res_.graph;
 		uncertain = res_.uncertainEdges;
+		fixed = fixed_;
 	}
-	const auto r = optimizer_->optimize(g, uncertain);
+	const auto r = optimizer_->optimize(g, uncertain, fixed);
 	std::lock_guard<std::mutex> lk(graphMutex_);
 	std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D> updated;
-	for (const auto& [id, p] : g.nodes) updated[id] = p;
+	for (const auto& [id, p] : g.nodes)
+		if (!fixed.count(id)) updated[id] = p;
 	writePoses(updated);
 	++res_.onlineOptimizations;
 	res_.onlineOptimization_ms += r.time_ms;
@@ -209,12 +218,16 @@ void Backend::process(KeyframeJob& job)
 		for (auto lc : loopDetector_->detect(job.kf, mapManager_->map(), poses_))
 		{
 			std::lock_guard<std::mutex> lk(graphMutex_);
-			if (!res_.graph.nodes.count(lc.from) || !res_.graph.nodes.count(lc.to))
+			if (!res_.graph.nodes.count(lc.from))
 			{
-				// A keyframe of a map loaded with --map-in: not a node of this graph.
+				// A keyframe of an earlier session (--map-in). Once this session is anchored in
+				// that map the loop joins them: the keyframe enters the graph, fixed.
 				++res_.loopsToPriorMap;
-				continue;
+				if (!anchored_ || !poses_.prior || !poses_.prior->count(lc.from)) continue;
+				addFixedNode(lc.from, poses_.prior->at(lc.from));
+				++res_.priorMapLoopEdges;
 			}
+			if (!res_.graph.nodes.count(lc.to)) continue;
 			if (s_.testCorruptLoops > 0 && std::uniform_real_distribution<double>(0, 1)(corruptRng_) < s_.testCorruptLoops)
 			{
 				// Test hook: a wrong loop, as a perceptual alias would give (5 m, 20 deg).

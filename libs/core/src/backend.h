@@ -12,6 +12,7 @@
 #include <deque>
 #include <mutex>
 #include <random>
+#include <set>
 #include <thread>
 
 namespace rasterslam::detail
@@ -54,6 +55,12 @@ class Backend
 	/** Waits for every submitted keyframe (and ends the worker), then finishes the open
 	 *  local map. */
 	void finish();
+	/** The session is anchored in the prior map: loops to its keyframes become graph edges. */
+	void setAnchored() { anchored_ = true; }
+	/** Adds a prior map's keyframe to the graph as a fixed node (caller holds graphMutex). */
+	void addFixedNode(mrpt::graphs::TNodeID id, const mrpt::poses::CPose3D& pose);
+	/** The prior map's keyframes in the graph (caller holds graphMutex). */
+	const std::set<mrpt::graphs::TNodeID>& fixedNodes() const { return fixed_; }
 	/** The tracking added an uncertain edge (relocalization): optimize at the next chance. */
 	void requestOptimization() { optimizationPending_ = true; }
 	/** Mapping and loop ms of each keyframe's scan record, complete after finish(). */
@@ -83,6 +90,8 @@ class Backend
 	std::mt19937 corruptRng_{12345};
 	std::size_t kfSinceOptimization_ = 0;
 	std::atomic<bool> optimizationPending_{false};
+	std::atomic<bool> anchored_{false};
+	std::set<mrpt::graphs::TNodeID> fixed_;
 	std::vector<std::pair<std::size_t, StageTimes>> times_;
 	double cpu_s_ = 0;
 	std::string error_;

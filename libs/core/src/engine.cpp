@@ -414,6 +414,14 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 					currPose = rl.pose;
 					anchored = true;
 					res.localized = true;
+					backend.setAnchored();
+					// The hit itself ties the session to the map in the graph.
+					LoopConstraint c;
+					c.from = rl.keyframe;
+					c.T_from_to = rl.pose - rl.keyframePose;
+					c.information.setIdentity();
+					c.information *= 100;
+					relocEdge = c;
 					++res.relocalized;
 					MRPT_LOG_INFO_STREAM(
 						"scan " << scan->index << ": located in the prior map (local map " << rl.localMap << ", "
@@ -499,6 +507,14 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 					}
 				}
 				odoSinceKf.reset();
+				if (relocEdge && !graph.nodes.count(relocEdge->from))
+				{
+					// A keyframe of an earlier session: it enters the graph, fixed.
+					if (const auto* prior = poses.prior; prior && prior->count(relocEdge->from))
+						backend.addFixedNode(relocEdge->from, prior->at(relocEdge->from));
+					else
+						relocEdge.reset();
+				}
 				if (relocEdge)
 				{
 					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
@@ -592,7 +608,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		MRPT_LOG_INFO_STREAM(
 			"optimizing the pose graph: " << graph.nodes.size() << " nodes, " << graph.edges.size()
 										  << " edges");
-		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges);
+		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges, backend.fixedNodes());
 	}
 	res.poses.reserve(res.scans.size());
 	for (const auto& r : res.scans) res.poses.push_back(graph.nodes.at(r.kfNode) + r.T_kf_scan);

@@ -238,7 +238,10 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		{
 			const auto it = map.localMaps.find(entryMap_.at(r.entry));
 			if (it == map.localMaps.end()) continue;  // not in this map (cannot happen unless removed)
-			if (it->second->updatedStamp > kf.stamp - excludeRecent_s_) continue;  // recent: not a loop
+			// Recent places of this session are no loops; an earlier session's clock is another
+			// clock (its stamps may overlap this one's), so its places always count.
+			const bool sameSession = it->second->session + 1 >= map.sessions;
+			if (sameSession && it->second->updatedStamp > kf.stamp - excludeRecent_s_) continue;
 			if (examined++ >= maxCandidates_) break;
 			// An offline local map is read from the store for the verification.
 			const auto data = map.data(it->first);

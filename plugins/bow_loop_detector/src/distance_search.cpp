@@ -20,7 +20,7 @@ void BowLoopDetector::searchByDistance(
 	const Eigen::Vector3d here(kf.pose.x(), kf.pose.y(), kf.pose.z());
 	for (const auto& [id, lm] : map.localMaps)
 	{
-		if (lm->updatedStamp > kf.stamp - excludeRecent_s_) continue;
+		if (lm->session + 1 >= map.sessions && lm->updatedStamp > kf.stamp - excludeRecent_s_) continue;
 		if (search_ == Search::Keyframes)
 		{
 			for (std::size_t k = 0; k < lm->keyframes.size(); k++)

@@ -25,7 +25,8 @@ class CeresOptimizer : public Optimizer
    public:
 	/** Edges in `uncertain` get the robust loss (`loss`, `loss_scale`); the others none. */
 	OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph,
-	                         const EdgeSet& uncertain) override;
+	                         const EdgeSet& uncertain,
+	                         const std::set<mrpt::graphs::TNodeID>& fixed) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override
@@ -191,7 +192,8 @@ std::map<TNodeID, TNodeID> componentRoots(const std::map<TNodeID, NodeBlock>& bl
 }  // namespace
 
 OptimizerResult CeresOptimizer::optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph,
-                                         const EdgeSet& uncertain)
+                                         const EdgeSet& uncertain,
+                                         const std::set<mrpt::graphs::TNodeID>& fixed)
 {
 	OptimizerResult r;
 	if (graph.edges.empty() || graph.nodes.size() < 2)
@@ -233,11 +235,15 @@ OptimizerResult CeresOptimizer::optimize(mrpt::graphs::CNetworkOfPoses3DInf& gra
 	// error (6 free directions). Fixing its first node removes that freedom, so the normal
 	// equations stay positive definite and the component stays where the odometry put it,
 	// instead of relying on the damping to hold it.
+	// A component that holds a fixed node (the root, an earlier session's keyframe) is held
+	// by it already.
 	const auto compRoot = componentRoots(blocks, edges);
-	const bool rootInGraph = blocks.count(graph.root) > 0;
+	std::set<TNodeID> heldComponents;
+	for (const auto& [id, b] : blocks)
+		if (id == graph.root || fixed.count(id)) heldComponents.insert(compRoot.at(id));
 	for (auto& [id, b] : blocks)
-		b.fixed = id == graph.root ||
-		          (compRoot.at(id) == id && !(rootInGraph && compRoot.at(graph.root) == id));
+		b.fixed = id == graph.root || fixed.count(id) > 0 ||
+		          (compRoot.at(id) == id && !heldComponents.count(id));
 
 	std::unique_ptr<ceres::LossFunction> loss;
 	if (loss_ == "cauchy")

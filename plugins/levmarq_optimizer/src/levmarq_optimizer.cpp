@@ -14,7 +14,8 @@ class LevMarqOptimizer : public Optimizer
    public:
 	/** MRPT's SPA has no robust loss: `uncertain` edges are weighted like the others. */
 	OptimizerResult optimize(
-		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain) override;
+		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain,
+		const std::set<mrpt::graphs::TNodeID>& fixed) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override
@@ -44,7 +45,8 @@ MRPT_INITIALIZER(register_rasterslam_plugin_levmarq)
 }
 
 OptimizerResult LevMarqOptimizer::optimize(
-	mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& /*uncertain*/)
+	mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& /*uncertain*/,
+	const std::set<mrpt::graphs::TNodeID>& fixed)
 {
 	OptimizerResult r;
 	if (graph.edges.empty() || graph.nodes.size() < 2) return r;
@@ -57,7 +59,11 @@ OptimizerResult LevMarqOptimizer::optimize(
 	params["e2"] = e2_;
 	mrpt::graphslam::TResultInfoSpaLevMarq info;
 	r.initialError = graph.chi2();
-	mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, nullptr, params);
+	// MRPT keeps the root fixed; other fixed nodes are left out of the set it optimizes.
+	std::set<mrpt::graphs::TNodeID> free;
+	for (const auto& [id, p] : graph.nodes)
+		if (id != graph.root && !fixed.count(id)) free.insert(id);
+	mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, fixed.empty() ? nullptr : &free, params);
 	r.ran = true;
 	r.iterations = info.num_iters;
 	r.finalError = graph.chi2();

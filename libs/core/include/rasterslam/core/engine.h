@@ -63,7 +63,8 @@ struct RunResult
 	std::size_t keyframes = 0, lost = 0, late = 0, loopEdges = 0, skippedBadScans = 0;
 	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
 	std::size_t relocalized = 0, relocalizationFailures = 0;
-	std::size_t loopsToPriorMap = 0;  //!< loops found to a --map-in map (not graph edges yet)
+	std::size_t loopsToPriorMap = 0;  //!< loops found to a --map-in map's keyframes
+	std::size_t priorMapLoopEdges = 0;  //!< of those, made graph edges (after the anchoring)
 	/** --map-in: whether the session was located (anchored) in the prior map, and how many
 	 *  relocalization hits in earlier sessions it had. */
 	bool localized = false;

@@ -236,10 +236,12 @@ class Optimizer : public Plugin
 	DEFINE_VIRTUAL_MRPT_OBJECT(Optimizer)
    public:
 	std::string role() const override { return "optimizer"; }
-	/** Optimizes the node poses of `graph` in place; the root node stays fixed. `uncertain`
-	 *  names the edges that may be outliers (see EdgeSet). */
+	/** Optimizes the node poses of `graph` in place; the root node and the nodes in `fixed`
+	 *  (an earlier session's keyframes) stay where they are. `uncertain` names the edges that
+	 *  may be outliers (see EdgeSet). */
 	virtual OptimizerResult optimize(
-		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain = {}) = 0;
+		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain = {},
+		const std::set<mrpt::graphs::TNodeID>& fixed = {}) = 0;
 };
 
 }  // namespace rasterslam
