@@ -100,6 +100,11 @@ void Backend::workerLoop()
 			std::lock_guard<std::mutex> lk(queueMutex_);
 			if (error_.empty()) error_ = e.what();
 		}
+		catch (...)
+		{
+			std::lock_guard<std::mutex> lk(queueMutex_);
+			if (error_.empty()) error_ = "unknown exception";
+		}
 		{
 			std::lock_guard<std::mutex> lk(queueMutex_);
 			busy_ = false;
@@ -215,6 +220,7 @@ void Backend::process(KeyframeJob& job)
 	if (loopDetector_)
 	{
 		const auto t0 = Clock::now();
+		std::vector<std::pair<uint64_t, uint64_t>> accepted;
 		for (auto lc : loopDetector_->detect(job.kf, mapManager_->map(), poses_))
 		{
 			std::lock_guard<std::mutex> lk(graphMutex_);
@@ -239,19 +245,23 @@ void Backend::process(KeyframeJob& job)
 			e.cov_inv = lc.information;
 			res_.graph.insertEdge(lc.from, lc.to, e);
 			res_.uncertainEdges.insert({lc.from, lc.to});
-			mapManager_->loopAccepted(lc.from, lc.to, job.kf.stamp);
+			accepted.emplace_back(lc.from, lc.to);
 			++res_.loopEdges;
 			optimizationPending_ = true;
 		}
+		// Outside the graph lock: this may write a local map to the offline store, and the
+		// tracking takes that lock every scan.
+		for (const auto& [from, to] : accepted) mapManager_->loopAccepted(from, to, job.kf.stamp);
 		// Paper, "Loop Closure": the trajectory is optimized after a loop constraint is added
 		// (at most every optimize_every_keyframes keyframes).
 		++kfSinceOptimization_;
 		if (optimizer_ && s_.optimizeOnline && optimizationPending_ &&
 			kfSinceOptimization_ >= static_cast<std::size_t>(s_.optimizeEveryKeyframes))
 		{
-			optimizeNow();
+			// Cleared first: a request the tracking makes meanwhile stays for the next time.
 			optimizationPending_ = false;
 			kfSinceOptimization_ = 0;
+			optimizeNow();
 		}
 		t.loop = msSince(t0);
 	}

@@ -349,7 +349,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		if (odo.status == TrackingStatus::Lost)
 		{
 			++res.lost;
-			if (!(loopDetector_ && rasterPtr && relocalizeOnLoss_)) lostSinceKf = true;
+			if (!(loopDetector_ && rasterPtr && relocalizeOnLoss_ && anchored)) lostSinceKf = true;
 			MRPT_LOG_THROTTLE_WARN_STREAM(
 				1.0, "scan " << scan->index << ": tracking lost (" << odo.message
 							 << "); using the motion prior");
@@ -379,16 +379,14 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			// A session in a prior map: try every keyframe until one is found in it, then
 			// move everything tracked so far into the map's frame.
 			const auto t0 = Clock::now();
-			RelocalizationResult rl;
-			bool earlier = false;
-			{
-				std::lock_guard<std::mutex> lk(backend.mapMutex());
-				const Map& map = mapManager_->map();
-				rl = loopDetector_->relocalize(*scan, *rasterPtr, map, poses);
-				// Only an earlier session's local map can anchor this one (its own are in its
-				// own frame).
-				earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
-			}
+			// Held until the session is moved into the map's frame: the back end must not see
+			// half of it (it holds this lock for a whole keyframe's work).
+			std::lock_guard<std::mutex> mapLock(backend.mapMutex());
+			const Map& map = mapManager_->map();
+			const RelocalizationResult rl = loopDetector_->relocalize(*scan, *rasterPtr, map, poses);
+			// Only an earlier session's local map can anchor this one (its own are in its own
+			// frame).
+			const bool earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
 			rec.ms.loop += msSince(t0);
 			if (earlier)
 			{
@@ -400,7 +398,9 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				std::size_t agreeing = 0;
 				for (const auto& h : anchorHits)
 				{
-					const auto d = h - C;
+					// Compared where the vehicle is now: a heading difference then counts as the
+					// offset it makes here, not at the session's origin.
+					const auto d = (h + currPose) - rl.pose;
 					const double angle =
 						Eigen::AngleAxisd(d.getRotationMatrix().asEigen()).angle() * 180 / M_PI;
 					agreeing += d.norm() < anchorAgree_m_ && angle < anchorAgree_deg_;
@@ -442,7 +442,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			}
 		}
 		else if (
-			loopDetector_ && rasterPtr && haveKf && odo.status == TrackingStatus::Lost && relocalizeOnLoss_)
+			anchored && loopDetector_ && rasterPtr && haveKf && odo.status == TrackingStatus::Lost &&
+			relocalizeOnLoss_)
 		{
 			const auto t0 = Clock::now();
 			RelocalizationResult rl;
@@ -490,6 +491,18 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			const mrpt::graphs::TNodeID id = nextNode++;
 			{
 				std::lock_guard<std::mutex> lk(backend.graphMutex());
+				if (haveKf)
+				{
+					// The back end may have moved the last keyframe since this scan read it (only
+					// then recompose: composing a rotation with its own inverse feeds rounding
+					// into every later keyframe).
+					const mrpt::poses::CPose3D kfNow = graph.nodes.at(lastKf);
+					if (!(kfNow == lastKfPose))
+					{
+						currPose = kfNow + (currPose - lastKfPose);
+						lastKfPose = kfNow;
+					}
+				}
 				graph.nodes[id] = currPose;
 				if (haveKf)
 				{
@@ -548,7 +561,12 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			{
 				// The worker keeps its own copies: the tracking goes on with the next scan.
 				job.scan = std::make_shared<const Scan>(*scan);
-				if (rasterPtr) job.raster = std::make_shared<const RasterFrame>(raster);
+				if (rasterPtr)
+				{
+					auto copy = std::make_shared<RasterFrame>(raster);
+					copy->image = raster.image.makeDeepCopy();  // CImage copies share pixels
+					job.raster = copy;
+				}
 			}
 			else
 			{

@@ -66,6 +66,19 @@ std::vector<bow::Descriptor> BowLoopDetector::descriptorsOf(const cv::Mat& m) co
 	return bow::toDescriptors(m.ptr<uint8_t>(0), static_cast<std::size_t>(m.rows));
 }
 
+LocalMap::ConstPtr BowLoopDetector::candidate(const Map& map, uint64_t localMap)
+{
+	try
+	{
+		return map.data(localMap);
+	}
+	catch (const std::exception& e)
+	{
+		MRPT_LOG_THROTTLE_WARN_STREAM(5.0, "local map " << localMap << " skipped: " << e.what());
+		return nullptr;
+	}
+}
+
 void BowLoopDetector::addEntry(uint64_t localMap, const std::vector<bow::Descriptor>& desc)
 {
 	bow::BowVector b;
@@ -244,7 +257,8 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			if (sameSession && it->second->updatedStamp > kf.stamp - excludeRecent_s_) continue;
 			if (examined++ >= maxCandidates_) break;
 			// An offline local map is read from the store for the verification.
-			const auto data = map.data(it->first);
+			const auto data = candidate(map, it->first);
+			if (!data) continue;
 			const auto& lm = *data;
 			LoopDecision d;
 			d.queryStamp = kf.stamp;

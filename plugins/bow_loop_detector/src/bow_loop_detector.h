@@ -75,6 +75,10 @@ class BowLoopDetector : public LoopDetector
 	void trainOnline();
 	void addEntry(uint64_t localMap, const std::vector<bow::Descriptor>& desc);
 	std::vector<bow::Descriptor> descriptorsOf(const cv::Mat& m) const;
+	/** A candidate local map with its points (read from the offline store when it is
+	 *  offline); null, with a warning, when its file cannot be read: one damaged file costs a
+	 *  candidate, not the run. */
+	LocalMap::ConstPtr candidate(const Map& map, uint64_t localMap);
 
 	// parameters
 	std::string vocabularyFile_;

@@ -53,7 +53,8 @@ void BowLoopDetector::searchByDistance(
 	{
 		LoopDecision d;
 		d.queryStamp = kf.stamp;
-		const auto data = map.data(c.lm->id);  // offline: read from the store
+		const auto data = candidate(map, c.lm->id);  // offline: read from the store
+		if (!data) continue;
 		const auto v = verify(q, *data, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
 		// No BOW score here: the share of features that are inliers ranks the candidates.
 		d.score = q.pts.empty() ? 0 : static_cast<double>(v.fit.inliers.size()) / static_cast<double>(q.pts.size());

@@ -44,7 +44,8 @@ RelocalizationResult BowLoopDetector::relocalize(
 	{
 		const auto it = map.localMaps.find(entryMap_.at(r.entry));
 		if (it == map.localMaps.end()) continue;
-		const auto data = map.data(it->first);  // offline: read from the store
+		const auto data = candidate(map, it->first);  // offline: read from the store
+		if (!data) continue;
 		const auto& lm = *data;
 		const auto v = verify(q, lm, static_cast<uint32_t>(scan.index * 17 + 3 + lm.id));
 		if (v.fit.ok && v.fit.inliers.size() > res.inliers)

@@ -235,14 +235,17 @@ OptimizerResult CeresOptimizer::optimize(mrpt::graphs::CNetworkOfPoses3DInf& gra
 	// error (6 free directions). Fixing its first node removes that freedom, so the normal
 	// equations stay positive definite and the component stays where the odometry put it,
 	// instead of relying on the damping to hold it.
-	// A component that holds a fixed node (the root, an earlier session's keyframe) is held
-	// by it already.
+	// A component that holds a fixed node (an earlier session's keyframe) is held by it: its
+	// root then moves too (the session's first pose came from one relocalization). Otherwise
+	// the root holds its component.
 	const auto compRoot = componentRoots(blocks, edges);
 	std::set<TNodeID> heldComponents;
 	for (const auto& [id, b] : blocks)
-		if (id == graph.root || fixed.count(id)) heldComponents.insert(compRoot.at(id));
+		if (fixed.count(id)) heldComponents.insert(compRoot.at(id));
+	const bool rootFixed = blocks.count(graph.root) && !heldComponents.count(compRoot.at(graph.root));
+	if (rootFixed) heldComponents.insert(compRoot.at(graph.root));
 	for (auto& [id, b] : blocks)
-		b.fixed = id == graph.root || fixed.count(id) > 0 ||
+		b.fixed = (id == graph.root && rootFixed) || fixed.count(id) > 0 ||
 		          (compRoot.at(id) == id && !heldComponents.count(id));
 
 	std::unique_ptr<ceres::LossFunction> loss;

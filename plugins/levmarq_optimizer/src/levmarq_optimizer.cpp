@@ -59,10 +59,11 @@ OptimizerResult LevMarqOptimizer::optimize(
 	params["e2"] = e2_;
 	mrpt::graphslam::TResultInfoSpaLevMarq info;
 	r.initialError = graph.chi2();
-	// MRPT keeps the root fixed; other fixed nodes are left out of the set it optimizes.
+	// MRPT keeps the root fixed unless given the nodes to optimize: with fixed nodes (an
+	// earlier session's keyframes) they hold the graph, and the root moves too.
 	std::set<mrpt::graphs::TNodeID> free;
 	for (const auto& [id, p] : graph.nodes)
-		if (id != graph.root && !fixed.count(id)) free.insert(id);
+		if (!fixed.count(id)) free.insert(id);
 	mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, fixed.empty() ? nullptr : &free, params);
 	r.ran = true;
 	r.iterations = info.num_iters;

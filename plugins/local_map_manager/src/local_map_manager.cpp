@@ -74,7 +74,7 @@ class LocalMapManager : public MapManager
 	std::vector<uint64_t> pendingLoops_;  //!< local maps a keyframe of the open map closed a loop with
 	std::unique_ptr<features::OrbExtractor> orb_;
 	double route_m_ = 0;  //!< distance travelled, along the keyframes
-	std::optional<mrpt::poses::CPose3D> lastKfPose_;
+	std::optional<uint64_t> lastKf_;
 	std::map<uint64_t, double> routeAt_;  //!< route distance when each online local map was finished
 	std::size_t culledByDistance_ = 0, culledByLoop_ = 0, culledByCount_ = 0;
 };
@@ -134,7 +134,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	lastLocalMap_.reset();
 	openSharesFirst_ = false;
 	route_m_ = 0;
-	lastKfPose_.reset();
+	lastKf_.reset();
 	routeAt_.clear();
 }
 
@@ -226,9 +226,11 @@ MappingUpdate LocalMapManager::addKeyframe(
 	k->scanIndex = kf.scanIndex;
 	k->stamp = kf.stamp;
 	map_.keyframes[k->id] = k;
-	const auto pose = poses.at(k->id);
-	if (lastKfPose_ && !kf.afterLoss) route_m_ += pose.distanceTo(*lastKfPose_);
-	lastKfPose_ = pose;
+	// Both poses read now: an anchoring or an optimization since the last keyframe must not
+	// count as distance travelled.
+	if (lastKf_ && !kf.afterLoss && map_.keyframes.count(*lastKf_))
+		route_m_ += poses.at(k->id).distanceTo(poses.at(*lastKf_));
+	lastKf_ = k->id;
 	auto& cloud = clouds_[k->id];
 	if (raster)
 		for (const auto idx : raster->pixelToPoint)
