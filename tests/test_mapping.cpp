@@ -95,7 +95,10 @@ TEST(Mapping, LocalMapsOverlapAndCarryTheOptimizedPoses)
 		EXPECT_EQ(lm->points(), lm->observers.size());
 		EXPECT_GT(lm->points(), 100u);
 		EXPECT_FALSE(lm->imagePng.empty());
-		if (prev) EXPECT_EQ(lm->keyframes.front(), prev->keyframes.back()) << "local map " << id;
+		if (prev)
+		{
+			EXPECT_EQ(lm->keyframes.front(), prev->keyframes.back()) << "local map " << id;
+		}
 		prev = lm.get();
 	}
 	for (const auto& [k, kf] : map.keyframes)

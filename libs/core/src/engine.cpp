@@ -29,23 +29,21 @@ const std::vector<std::string> kSections = {"plugins",		 "rasterizer", "odometry
 
 std::string rasterslamVersion() { return RASTERSLAM_VERSION; }
 
-double currentRssMb()
+namespace
+{
+/** A "Vm...:" line of /proc/self/status (kB), in MB; -1 when absent. */
+double procStatusMb(const std::string& key)
 {
 	std::ifstream f("/proc/self/status");
 	std::string line;
 	while (std::getline(f, line))
-		if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+		if (line.rfind(key, 0) == 0) return std::stod(line.substr(key.size())) / 1024.0;
 	return -1;
 }
+}  // namespace
 
-double peakRssMb()
-{
-	std::ifstream f("/proc/self/status");
-	std::string line;
-	while (std::getline(f, line))
-		if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
-	return -1;
-}
+double currentRssMb() { return procStatusMb("VmRSS:"); }
+double peakRssMb() { return procStatusMb("VmHWM:"); }
 
 Plugin::Ptr Engine::makeRole(
 	const yaml& cfg, const std::string& section, const mrpt::rtti::TRuntimeClassId* role,
