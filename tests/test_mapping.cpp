@@ -4,6 +4,12 @@
 // down-weighted by the robust loss, and local BA is deterministic.
 #include <rasterslam/io/trajectory_io.h>
 #include <mrpt/core/format.h>
+#include <mrpt/graphs/CNetworkOfPoses.h>
+#include <mrpt/maps/CSimpleMap.h>
+#include <mrpt/maps/registerAllClasses.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+#include <mrpt/obs/registerAllClasses.h>
+#include <opencv2/imgcodecs.hpp>
 #include <rasterslam/map/map.h>
 
 #include <algorithm>
@@ -434,4 +440,52 @@ TEST(Mapping, TwoRealSessionsLieInOneFrame)
 	EXPECT_EQ(num("n_associated"), 101);
 	EXPECT_LT(num("ate_rmse_m"), 0.08) << e.output;
 	EXPECT_LT(num("rpe_trans_mean_m"), 0.06) << e.output;
+}
+
+TEST(Mapping, ExportedMapLoadsInMrptAndOtherTools)
+{
+	mrpt::maps::registerAllClasses_mrpt_maps();
+	mrpt::obs::registerAllClasses_mrpt_obs();
+	const test::ScopedTempDir dir("mapping");
+	const auto map = (dir / "map").string();
+	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "run", " --last 200 --map-out " + map).exitCode, 0);
+	const auto r = test::runCommand(test::bin("rasterslam") + " map export " + map + " --out " + (dir / "exp").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const Map m = loadMap(map);
+	std::size_t points = 0;
+	for (const auto& [id, lm] : m.localMaps) points += lm->points();
+
+	// MRPT's own formats load back with MRPT: one keyframe of the simple map per local map,
+	// its point cloud whole; one graph node per keyframe at its saved pose.
+	mrpt::maps::CSimpleMap sm;
+	ASSERT_TRUE(sm.loadFromFile((dir / "exp/map.simplemap").string()));
+	ASSERT_EQ(sm.size(), m.localMaps.size());
+	std::size_t smPoints = 0;
+	for (std::size_t i = 0; i < sm.size(); i++)
+	{
+		const auto obs = std::get<1>(sm.get(i))->getObservationByClass<mrpt::obs::CObservationPointCloud>();
+		ASSERT_TRUE(obs);
+		smPoints += obs->pointcloud->size();
+	}
+	EXPECT_EQ(smPoints, points);
+	mrpt::graphs::CNetworkOfPoses3D g;
+	g.loadFromTextFile((dir / "exp/map.graph").string());
+	ASSERT_EQ(g.nodes.size(), m.keyframes.size());
+	for (const auto& [id, p] : m.priorPoses) EXPECT_LT(g.nodes.at(id).distanceTo(p), 1e-3) << id;
+	EXPECT_GE(g.edges.size(), m.keyframes.size() - 1);
+
+	// The point clouds say how many points they hold in their headers; the images decode.
+	auto header = [&](const fs::path& p, const std::string& key) {
+		std::ifstream f(p, std::ios::binary);
+		std::string line;
+		while (std::getline(f, line) && line.rfind("DATA", 0) != 0 && line != "end_header")
+			if (line.rfind(key, 0) == 0) return std::stoul(line.substr(key.size()));
+		return 0ul;
+	};
+	EXPECT_EQ(header(dir / "exp/points.pcd", "POINTS "), points);
+	EXPECT_EQ(header(dir / "exp/points.ply", "element vertex "), points);
+	const auto top = cv::imread((dir / "exp/top.png").string());
+	EXPECT_EQ(top.rows, 1000);
+	EXPECT_EQ(std::distance(fs::directory_iterator(dir / "exp/localmaps"), fs::directory_iterator()),
+			  static_cast<std::ptrdiff_t>(m.localMaps.size()));
 }

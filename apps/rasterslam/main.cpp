@@ -20,7 +20,7 @@ usage:
                  [--map-in DIR [--require-localization]] [--map-out DIR [--overwrite]]
                  [--quiet | --verbose]
   rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] [--first N] [--last N]
-  rasterslam map info DIR
+  rasterslam map info DIR | rasterslam map export DIR --out DIR2
   rasterslam list-plugins
   rasterslam --help | --version
 

@@ -15,8 +15,14 @@ namespace rasterslam::cli
 namespace
 {
 const char* kMapUsage = R"(usage: rasterslam map info DIR
-  info DIR   sessions, local maps online and offline, keyframes, points, sizes on disk and
-             the time span of the map saved in DIR (by rasterslam run --map-out)
+       rasterslam map export DIR --out DIR2
+  info DIR     sessions, local maps online and offline, keyframes, points, sizes on disk and
+               the time span of the map saved in DIR (by rasterslam run --map-out)
+  export DIR   writes DIR2/map.graph (keyframe pose graph, MRPT text format),
+               DIR2/map.simplemap (one keyframe per local map with its points, MRPT),
+               DIR2/points.pcd and points.ply (every local map's points in the map frame),
+               DIR2/top.png (points and each session's trajectory from above) and
+               DIR2/localmaps/NNNN.png
 )";
 
 int mapInfo(const std::string& dir)
@@ -80,6 +86,13 @@ int mapCommand(int argc, char** argv)
 	const std::string sub = argv[1];
 	try
 	{
+		if (sub == "export")
+		{
+			if (argc != 5 || std::string(argv[3]) != "--out")
+				usageError("map export: expected rasterslam map export DIR --out DIR2");
+			exportMap(argv[2], argv[4]);
+			return 0;
+		}
 		if (sub == "info")
 		{
 			if (argc != 3) usageError("map info: expected one folder (rasterslam map info DIR)");
@@ -91,7 +104,7 @@ int mapCommand(int argc, char** argv)
 		std::cerr << "rasterslam: error: " << e.what() << "\n";
 		return kExitError;
 	}
-	usageError("map: unknown subcommand '" + sub + "' (info)");
+	usageError("map: unknown subcommand '" + sub + "' (info, export)");
 }
 
 }  // namespace rasterslam::cli

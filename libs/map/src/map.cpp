@@ -43,7 +43,7 @@ uint64_t Map::nextLocalMapId() const { return localMaps.empty() ? 0 : localMaps.
 LocalMap::ConstPtr Map::data(uint64_t localMap) const
 {
 	const auto& lm = localMaps.at(localMap);
-	if (lm->online) return lm;
+	if (lm->online || lm->hasData()) return lm;
 	std::lock_guard<std::mutex> lk(cache_.mutex);
 	for (const auto& c : cache_.maps)
 		if (c->id == localMap) return c;

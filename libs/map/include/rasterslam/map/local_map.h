@@ -50,6 +50,9 @@ class LocalMap : public mrpt::serialization::CSerializable
 
 	uint64_t anchor() const { return keyframes.empty() ? 0 : keyframes.front(); }
 	std::size_t points() const { return observers.size(); }
+	/** Points or image present (an offline stub has neither; a map read from a file has both
+	 *  whatever its online flag). */
+	bool hasData() const { return !observers.empty() || !imagePng.empty(); }
 	/** Index of a keyframe in `keyframes`, or -1. */
 	int keyframeIndex(uint64_t kf) const;
 	/** Bytes held in memory (for the memory budget). */
