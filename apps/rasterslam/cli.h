@@ -20,7 +20,6 @@ constexpr int kExitError = 1, kExitUsage = 2;
 int runCommand(int argc, char** argv);  // `rasterslam run ...`
 int relocalizeCommand(int argc, char** argv);  // `rasterslam relocalize ...`
 int mapCommand(int argc, char** argv);  // `rasterslam map ...`
-void exportMap(const std::string& dir, const std::string& outDir);  // `rasterslam map export`
 std::size_t parseIndexArg(const std::string& opt, const std::string& v);
 /** share/rasterslam/config/<name> from the environment, the install or the source tree. */
 std::string findConfig(const std::string& name = "default.yaml");

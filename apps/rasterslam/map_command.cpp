@@ -1,7 +1,12 @@
 // `rasterslam map ...`: tools over a saved map.
 #include <rasterslam/map/map.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <vector>
 #include <filesystem>
 #include <iostream>
 #include <limits>
@@ -90,8 +95,12 @@ int mapCommand(int argc, char** argv)
 		{
 			if (argc != 5 || std::string(argv[3]) != "--out")
 				usageError("map export: expected rasterslam map export DIR --out DIR2");
-			exportMap(argv[2], argv[4]);
-			return 0;
+			// The export is a program of its own beside this one: only it loads PCL.
+			const auto exe = (fs::read_symlink("/proc/self/exe").parent_path() / "rasterslam-map-export").string();
+			std::vector<char*> args{const_cast<char*>(exe.c_str()), argv[2], argv[3], argv[4], nullptr};
+			std::fflush(stdout);
+			::execv(exe.c_str(), args.data());
+			throw std::runtime_error("cannot run '" + exe + "': " + std::strerror(errno));
 		}
 		if (sub == "info")
 		{
