@@ -22,6 +22,17 @@ double msSince(Clock::time_point t0)
 {
 	return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
+/** The edge a relocalization gives, from the matched keyframe to the scan: the relative pose
+ *  counts (the map's keyframe pose may predate an optimization). */
+LoopConstraint relocalizationConstraint(const RelocalizationResult& rl)
+{
+	LoopConstraint c;
+	c.from = rl.keyframe;
+	c.T_from_to = rl.pose - rl.keyframePose;
+	c.information.setIdentity();
+	c.information *= 100;
+	return c;
+}
 const std::vector<std::string> kSections = {"plugins",		 "rasterizer", "odometry",
 											"map_manager",	 "loop_detector", "optimizer",
 											"engine"};
@@ -414,12 +425,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 					res.localized = true;
 					backend.setAnchored();
 					// The hit itself ties the session to the map in the graph.
-					LoopConstraint c;
-					c.from = rl.keyframe;
-					c.T_from_to = rl.pose - rl.keyframePose;
-					c.information.setIdentity();
-					c.information *= 100;
-					relocEdge = c;
+					relocEdge = relocalizationConstraint(rl);
 					++res.relocalized;
 					MRPT_LOG_INFO_STREAM(
 						"scan " << scan->index << ": located in the prior map (local map " << rl.localMap << ", "
@@ -450,8 +456,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
 			}
 			rec.ms.loop += msSince(t0);
-			const auto matched = poses.live(rl.keyframe) ? std::optional<mrpt::poses::CPose3D>(*poses.live(rl.keyframe))
-													   : std::nullopt;
+			std::optional<mrpt::poses::CPose3D> matched;  // the keyframe, when a node of this graph
+			if (const auto* p = poses.live(rl.keyframe)) matched = *p;
 			if (rl.found)
 			{
 				++res.relocalized;
@@ -460,15 +466,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 							<< rl.keyframe << ", " << rl.inliers << " inliers)");
 				if (matched)
 				{
-					// The map's keyframe pose may predate optimization: the relative pose to
-					// it is what counts.
-					LoopConstraint c;
-					c.from = rl.keyframe;
-					c.T_from_to = rl.pose - rl.keyframePose;
-					c.information.setIdentity();
-					c.information *= 100;
-					relocEdge = c;
-					currPose = *matched + c.T_from_to;
+					relocEdge = relocalizationConstraint(rl);
+					currPose = *matched + relocEdge->T_from_to;
 				}
 				else
 					currPose = rl.pose;  // a keyframe of the prior map: already its frame

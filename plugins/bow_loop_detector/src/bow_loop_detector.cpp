@@ -129,12 +129,12 @@ cv::Mat descriptorMat(const std::vector<uint8_t>& bytes)
 }
 }  // namespace
 
-BowLoopDetector::Verified BowLoopDetector::verify(
+features::RigidResult BowLoopDetector::verify(
 	const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe) const
 {
-	Verified v;
+	features::RigidResult fit;
 	const std::size_t n = lm.points();
-	if (n == 0 || q.desc.rows == 0) return v;
+	if (n == 0 || q.desc.rows == 0) return fit;
 	std::vector<int> rows;  // local-map point of each candidate row
 	cv::Mat cand;
 	if (onlyKeyframe < 0) cand = descriptorMat(lm.descriptors);
@@ -156,9 +156,9 @@ BowLoopDetector::Verified BowLoopDetector::verify(
 		p.push_back(q.pts[static_cast<std::size_t>(mt.a)]);
 		m.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
 	}
-	v.fit = features::ransacRigid(p, m, ransac_, seed);
-	for (auto& i : v.fit.inliers) i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
-	return v;
+	fit = features::ransacRigid(p, m, ransac_, seed);
+	for (auto& i : fit.inliers) i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
+	return fit;
 }
 
 uint64_t BowLoopDetector::nearestKeyframe(
@@ -183,22 +183,22 @@ uint64_t BowLoopDetector::nearestKeyframe(
 }
 
 void BowLoopDetector::consider(
-	LoopDecision d, const Verified& v, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
+	LoopDecision d, const features::RigidResult& fit, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
 	const Map& map, const PoseView& poses, bool acceptable, std::optional<LoopConstraint>& best,
 	std::size_t& bestDecision)
 {
 	d.candidateMap = lm.id;
-	d.inliers = v.fit.inliers.size();
-	d.verified = v.fit.ok;
+	d.inliers = fit.inliers.size();
+	d.verified = fit.ok;
 	uint64_t kfId = lm.anchor();
 	mrpt::poses::CPose3D T_kf_query;
-	if (!v.fit.inliers.empty())
+	if (!fit.inliers.empty())
 	{
 		// The fit is in the anchor's frame; loops.txt and the edge use the local map's keyframe
 		// nearest to the query.
-		kfId = nearestKeyframe(lm, v.fit.T, poses);
+		kfId = nearestKeyframe(lm, fit.T, poses);
 		const auto T_anchor_kf = poses.at(kfId) - poses.at(lm.anchor());
-		T_kf_query = (mrpt::poses::CPose3D() - T_anchor_kf) + toPose(v.fit.T);
+		T_kf_query = (mrpt::poses::CPose3D() - T_anchor_kf) + toPose(fit.T);
 		d.T_candidate_query = T_kf_query;
 		d.candidateStamp = map.keyframes.at(kfId)->stamp;
 	}
@@ -209,7 +209,7 @@ void BowLoopDetector::consider(
 		c.to = kf.node;
 		c.T_from_to = T_kf_query;
 		c.information = mrpt::math::CMatrixDouble66(
-			features::pointToPointInformation(q.pts, v.fit.inliers, pointSigma_m_));
+			features::pointToPointInformation(q.pts, fit.inliers, pointSigma_m_));
 		c.score = d.score;
 		c.inliers = d.inliers;
 		c.localMap = lm.id;
@@ -263,9 +263,9 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			LoopDecision d;
 			d.queryStamp = kf.stamp;
 			d.score = norm > 1e-6 ? r.score / norm : 0;
-			const auto v = verify(q, lm, static_cast<uint32_t>(kf.node * 31 + lm.id));
-			d.reason = !v.fit.ok ? "inliers" : (d.score < minScore_ ? "score" : "ok");
-			consider(d, v, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision);
+			const auto fit = verify(q, lm, static_cast<uint32_t>(kf.node * 31 + lm.id));
+			d.reason = !fit.ok ? "inliers" : (d.score < minScore_ ? "score" : "ok");
+			consider(d, fit, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision);
 		}
 		prevBow_ = b;
 	}

@@ -45,19 +45,17 @@ class BowLoopDetector : public LoopDetector
 		cv::Mat desc;
 		std::vector<Eigen::Vector3f> pts;
 	};
-	struct Verified
-	{
-		features::RigidResult fit;  //!< T maps the query frame into the local map's anchor frame
-	};
 	/** Matches the query against the local map's points (only those seen by keyframe
 	 *  `onlyKeyframe` when >= 0) and fits the rigid transform with RANSAC. */
-	Verified verify(const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe = -1) const;
+	/** The fit's T maps the query frame into the local map's anchor frame; its inliers are
+	 *  query feature indices. */
+	features::RigidResult verify(const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe = -1) const;
 	/** The keyframe of `lm` nearest to a pose given in the anchor's frame: the one a
 	 *  constraint to that pose is shortest from. */
 	static uint64_t nearestKeyframe(const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose, const PoseView& poses);
 	/** Turns a verification into a decision (logged) and keeps the best acceptable one. */
 	void consider(
-		LoopDecision d, const Verified& v, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
+		LoopDecision d, const features::RigidResult& fit, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
 		const Map& map, const PoseView& poses, bool acceptable, std::optional<LoopConstraint>& best, std::size_t& bestDecision);
 	/** The paper's two baselines: candidates are the keyframes, or the local maps, near the
 	 *  current pose estimate; each is verified by feature matching. */

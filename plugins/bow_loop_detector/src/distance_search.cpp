@@ -1,4 +1,6 @@
 // The paper's two loop-search baselines: candidates by distance, verified by feature matching.
+#include <set>
+
 #include "bow_loop_detector.h"
 
 using namespace rasterslam;
@@ -18,6 +20,7 @@ void BowLoopDetector::searchByDistance(
 	};
 	std::vector<Cand> cands;
 	const Eigen::Vector3d here(kf.pose.x(), kf.pose.y(), kf.pose.z());
+	std::set<uint64_t> taken;  // a keyframe shared by two local maps is a candidate once
 	for (const auto& [id, lm] : map.localMaps)
 	{
 		if (lm->session + 1 >= map.sessions && lm->updatedStamp > kf.stamp - excludeRecent_s_) continue;
@@ -27,8 +30,7 @@ void BowLoopDetector::searchByDistance(
 			{
 				const auto p = poses(lm->keyframes[k]);
 				if (!p) continue;
-				// A keyframe shared by two local maps is a candidate once, in its first.
-				if (k == 0 && lm->keyframes.size() > 1 && map.localMapsOf(lm->keyframes[0]).front() != id) continue;
+				if (!taken.insert(lm->keyframes[k]).second) continue;
 				const double d = (Eigen::Vector3d(p->x(), p->y(), p->z()) - here).norm();
 				if (d <= searchRadius_m_) cands.push_back({d, lm.get(), static_cast<int>(k)});
 			}
@@ -55,10 +57,10 @@ void BowLoopDetector::searchByDistance(
 		d.queryStamp = kf.stamp;
 		const auto data = candidate(map, c.lm->id);  // offline: read from the store
 		if (!data) continue;
-		const auto v = verify(q, *data, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
+		const auto fit = verify(q, *data, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
 		// No BOW score here: the share of features that are inliers ranks the candidates.
-		d.score = q.pts.empty() ? 0 : static_cast<double>(v.fit.inliers.size()) / static_cast<double>(q.pts.size());
-		d.reason = v.fit.ok ? "ok" : "inliers";
-		consider(d, v, *data, q, kf, map, poses, true, best, bestDecision);
+		d.score = q.pts.empty() ? 0 : static_cast<double>(fit.inliers.size()) / static_cast<double>(q.pts.size());
+		d.reason = fit.ok ? "ok" : "inliers";
+		consider(d, fit, *data, q, kf, map, poses, true, best, bestDecision);
 	}
 }

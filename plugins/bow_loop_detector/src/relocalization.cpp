@@ -47,24 +47,24 @@ RelocalizationResult BowLoopDetector::relocalize(
 		const auto data = candidate(map, it->first);  // offline: read from the store
 		if (!data) continue;
 		const auto& lm = *data;
-		const auto v = verify(q, lm, static_cast<uint32_t>(scan.index * 17 + 3 + lm.id));
-		if (v.fit.ok && v.fit.inliers.size() > res.inliers)
+		const auto fit = verify(q, lm, static_cast<uint32_t>(scan.index * 17 + 3 + lm.id));
+		if (fit.ok && fit.inliers.size() > res.inliers)
 		{
-			const uint64_t kf = nearestKeyframe(lm, v.fit.T, poses);
+			const uint64_t kf = nearestKeyframe(lm, fit.T, poses);
 			res.found = true;
 			res.reason = "ok";
 			res.localMap = lm.id;
 			res.keyframe = kf;
 			res.keyframeStamp = map.keyframes.at(kf)->stamp;
 			res.score = r.score;
-			res.inliers = v.fit.inliers.size();
+			res.inliers = fit.inliers.size();
 			res.keyframePose = poses.at(kf);
-			res.pose = poses.at(lm.anchor()) + toPose(v.fit.T);
+			res.pose = poses.at(lm.anchor()) + toPose(fit.T);
 		}
 		else if (!res.found)
 		{
 			res.score = std::max(res.score, r.score);
-			res.inliers = std::max(res.inliers, v.fit.inliers.size());
+			res.inliers = std::max(res.inliers, fit.inliers.size());
 		}
 	}
 	return res;
