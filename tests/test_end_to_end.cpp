@@ -61,6 +61,7 @@ std::string kitti50()
 	static const std::string path = [] {
 		const auto D = test::sharedData("kitti00-0000-0100");
 		const auto p = (fs::temp_directory_path() / ("rasterslam-e2e-kitti50-" + std::to_string(::getpid()) + ".rawlog")).string();
+		test::removeAtExit(p);
 		const auto r = test::runCommand(
 			test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D +
 			"/poses_semantickitti.txt --calib " + D + "/calib.txt --times " + D + "/times.txt --last 49 -o " + p);

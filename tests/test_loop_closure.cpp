@@ -27,6 +27,7 @@ std::string vlp16Rawlog()
 {
 	static const std::string path = [] {
 		const auto p = (fs::temp_directory_path() / ("rasterslam-loop-vlp16-" + std::to_string(::getpid()) + ".rawlog")).string();
+		test::removeAtExit(p);
 		const auto r = test::runCommand(
 			test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
 		EXPECT_EQ(r.exitCode, 0) << r.output;

@@ -7,7 +7,9 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <string>
+#include <vector>
 
 namespace rasterslam::test
 {
@@ -34,7 +36,26 @@ inline bool sharedDataAvailable() { return std::filesystem::is_directory(RASTERS
 		}                                                                                  \
 	} while (0)
 
-/** A fresh empty folder under the system temp dir, unique to the running test. */
+/** Removes a file or folder when the test program ends (also after failed tests). */
+inline void removeAtExit(const std::filesystem::path& p)
+{
+	struct Registry
+	{
+		std::mutex mutex;
+		std::vector<std::filesystem::path> paths;
+		~Registry()
+		{
+			std::error_code ec;
+			for (const auto& q : paths) std::filesystem::remove_all(q, ec);
+		}
+	};
+	static Registry registry;
+	std::lock_guard<std::mutex> lk(registry.mutex);
+	registry.paths.push_back(p);
+}
+
+/** A fresh empty folder under the system temp dir, unique to the running test; removed when
+ *  the test program ends. */
 inline std::filesystem::path tempDir(const std::string& tag)
 {
 	const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
@@ -43,6 +64,7 @@ inline std::filesystem::path tempDir(const std::string& tag)
 		 std::to_string(::getpid()));
 	std::filesystem::remove_all(p);
 	std::filesystem::create_directories(p);
+	removeAtExit(p);
 	return p;
 }
 
