@@ -442,6 +442,92 @@ TEST(Mapping, TwoRealSessionsLieInOneFrame)
 	EXPECT_LT(num("rpe_trans_mean_m"), 0.06) << e.output;
 }
 
+TEST(Mapping, MapsBuiltSeparatelyAreMergedIntoOneFrame)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	// The even and the odd frames of the KITTI sample, each a map of its own (each in the
+	// frame of its first scan), joined by `map merge`.
+	const test::ScopedTempDir dir("mapping");
+	const auto cfg = slamConfig(dir.path(), false, "");
+	for (int parity : {0, 1})
+	{
+		const std::string name = parity ? "odd" : "even";
+		const auto r = test::runCommand(
+			test::bin("rasterslam") + " run --rawlog " + kittiEveryOther(dir.path(), parity) + " --config " + cfg.string() +
+			" --quiet --out " + (dir / name).string() + " --map-out " + (dir / ("map-" + name)).string());
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+	}
+	const auto merged = (dir / "merged").string();
+	const auto merge = [&](const std::string& a, const std::string& b, const std::string& extra = "") {
+		return test::runCommand(
+			test::bin("rasterslam") + " map merge " + (dir / a).string() + " " + (dir / b).string() + " --out " + merged +
+			" --config " + cfg.string() + " --quiet" + extra);
+	};
+	auto r = merge("map-even", "map-odd");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const Map m = loadMap(merged), even = loadMap((dir / "map-even").string()), odd = loadMap((dir / "map-odd").string());
+	EXPECT_EQ(m.sessions, 2u);
+	EXPECT_EQ(m.keyframes.size(), even.keyframes.size() + odd.keyframes.size());
+	EXPECT_EQ(m.localMaps.size(), even.localMaps.size() + odd.localMaps.size());
+	EXPECT_GE(m.graph.count(LocalMapGraph::EdgeKind::Relocalization), 1u);
+	ASSERT_EQ(m.sessionRecords.size(), 2u);
+	EXPECT_NE(m.sessionRecords.at(1).input.find("odd"), std::string::npos);
+	// The first map stays where it was.
+	for (const auto& [id, p] : even.priorPoses) EXPECT_LT(m.priorPoses.at(id).distanceTo(p), 1e-6) << id;
+	for (const auto& [id, k] : m.keyframes) EXPECT_EQ(k->session, id < even.nextKeyframeId() ? 0u : 1u) << id;
+
+	// Both sessions' keyframes in one frame against the SemanticKITTI poses. Measured: ATE
+	// 0.032 m, consecutive keyframes (of different sessions, mostly) 0.042 m off on average.
+	r = test::runCommand(test::bin("rasterslam") + " map export " + merged + " --out " + (dir / "exp").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	interleave(dir / "even", dir / "odd", "groundtruth.tum", dir / "gt.tum");
+	fs::create_directories(dir / "s1");
+	fs::copy_file(dir / "exp/keyframes-s1.tum", dir / "s1/keyframes-s0.tum");
+	interleave(dir / "exp", dir / "s1", "keyframes-s0.tum", dir / "est.tum");
+	const auto j = test::runCommand(
+		test::bin("rasterslam-eval") + " traj --json --gt " + (dir / "gt.tum").string() + " --est " +
+		(dir / "est.tum").string());
+	ASSERT_EQ(j.exitCode, 0) << j.output;
+	auto num = [&](const std::string& key) {
+		std::smatch mt;
+		return std::regex_search(j.output, mt, std::regex("\"" + key + "\": ([-0-9.eE+]+)")) ? std::stod(mt[1]) : std::nan("");
+	};
+	EXPECT_EQ(num("n_associated"), static_cast<double>(m.keyframes.size()));
+	EXPECT_LT(num("ate_rmse_m"), 0.08) << j.output;
+	EXPECT_LT(num("rpe_trans_mean_m"), 0.05) << j.output;
+
+	// The merged map is not replaced by accident, and B is never the output.
+	r = merge("map-even", "map-odd");
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("--overwrite"), std::string::npos) << r.output;
+	EXPECT_EQ(merge("map-even", "merged", " --overwrite").exitCode, 1);
+	EXPECT_EQ(loadMap(merged).keyframes.size(), m.keyframes.size());
+}
+
+TEST(Mapping, MapsOfDifferentTownsAreNotMerged)
+{
+	// Two simulated towns (other seeds, same sensor and street plan kind): no overlap, an
+	// error, and nothing written.
+	const test::ScopedTempDir dir("mapping");
+	const auto cfg = slamConfig(dir.path(), false, "");
+	const auto other = (dir / "other.rawlog").string();
+	auto r = test::runCommand(
+		test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") +
+		" --seed 8 --scans 200 --compress 0 -o " + other);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	ASSERT_EQ(run(cfg, dir / "a", " --last 199 --map-out " + (dir / "map-a").string()).exitCode, 0);
+	r = test::runCommand(
+		test::bin("rasterslam") + " run --rawlog " + other + " --config " + cfg.string() + " --quiet --out " +
+		(dir / "b").string() + " --map-out " + (dir / "map-b").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	r = test::runCommand(
+		test::bin("rasterslam") + " map merge " + (dir / "map-a").string() + " " + (dir / "map-b").string() + " --out " +
+		(dir / "c").string() + " --config " + cfg.string() + " --quiet");
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("no overlap found"), std::string::npos) << r.output;
+	EXPECT_FALSE(fs::exists(dir / "c" / "map.rsmap"));
+}
+
 TEST(Mapping, ExportedMapLoadsInMrptAndOtherTools)
 {
 	mrpt::maps::registerAllClasses_mrpt_maps();

@@ -10,6 +10,7 @@
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/poses/CPose3DPDFGaussian.h>
+#include <rasterslam/io/trajectory_io.h>
 #include <rasterslam/map/map.h>
 #include <unistd.h>
 
@@ -130,6 +131,17 @@ void exportMap(const std::string& dir, const std::string& outDir)
 		return static_cast<bool>(f);
 	});
 
+	// Each session's keyframes as a trajectory, for rasterslam-eval and other tools.
+	std::map<uint32_t, io::Trajectory> trajectories;
+	for (const auto& [id, k] : map.keyframes)
+	{
+		Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+		T.matrix() = pose(id).getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
+		trajectories[k->session].push_back({k->stamp, T});
+	}
+	for (const auto& [s, t] : trajectories)
+		io::saveTrajectoryTum((out / mrpt::format("keyframes-s%u.tum", s)).string(), t);
+
 	const auto imgDir = out / "localmaps";
 	fs::create_directories(imgDir);
 	for (const auto& [id, stub] : map.localMaps)
@@ -143,8 +155,8 @@ void exportMap(const std::string& dir, const std::string& outDir)
 	}
 	std::printf(
 		"rasterslam: map %s exported to %s: map.graph (%zu keyframes), map.simplemap (%zu local maps), "
-		"points.pcd and points.ply (%zu points), top.png, localmaps/\n",
-		dir.c_str(), outDir.c_str(), graph.nodes.size(), sm.size(), cloud.size());
+		"points.pcd and points.ply (%zu points), top.png, keyframes-s*.tum (%zu sessions), localmaps/\n",
+		dir.c_str(), outDir.c_str(), graph.nodes.size(), sm.size(), cloud.size(), trajectories.size());
 }
 
 }  // namespace rasterslam::cli

@@ -1,4 +1,7 @@
 // `rasterslam map ...`: tools over a saved map.
+#include <rasterslam/core/config.h>
+#include <rasterslam/core/engine.h>
+#include <rasterslam/io/run_outputs.h>
 #include <rasterslam/map/map.h>
 
 #include <unistd.h>
@@ -21,13 +24,21 @@ namespace
 {
 const char* kMapUsage = R"(usage: rasterslam map info DIR
        rasterslam map export DIR --out DIR2
+       rasterslam map merge A B --out C [--config FILE] [--overwrite] [--quiet]
   info DIR     sessions, local maps online and offline, keyframes, points, sizes on disk and
                the time span of the map saved in DIR (by rasterslam run --map-out)
   export DIR   writes DIR2/map.graph (keyframe pose graph, MRPT text format),
                DIR2/map.simplemap (one keyframe per local map with its points, MRPT),
                DIR2/points.pcd and points.ply (every local map's points in the map frame),
                DIR2/top.png (points and each session's trajectory from above) and
-               DIR2/localmaps/NNNN.png
+               DIR2/localmaps/NNNN.png, DIR2/keyframes-sN.tum (each session's keyframes)
+  merge A B    two maps built separately become one, written to C: each keyframe of B is
+               located in A with no pose prior; engine.anchor_min_agreeing (3) of them must
+               agree on where B lies, else nothing is written (exit 1, "no overlap"). B's
+               keyframes are moved there and optimized with A fixed; B's sessions, local maps
+               and graph follow A's (ids renumbered), linked by relocalization edges.
+               --config: the loop detector and optimizer to use (default: slam.yaml);
+               C must not hold a map unless --overwrite (C may be A: A is then replaced)
 )";
 
 int mapInfo(const std::string& dir)
@@ -74,9 +85,64 @@ int mapInfo(const std::string& dir)
 		"place index  : %s (%.2f MB)\n", map.placeIndexClass.empty() ? "none" : map.placeIndexClass.c_str(),
 		map.placeIndex.size() / 1e6);
 	for (const auto& [id, s] : sessions)
+	{
 		std::printf(
 			"  session %u: %zu keyframes, %zu local maps (%zu online), stamps %.3f .. %.3f (%.1f s)\n", id, s.keyframes,
 			s.localMaps, s.online, s.first, s.last, s.keyframes ? s.last - s.first : 0.0);
+		if (const auto r = map.sessionRecords.find(id); r != map.sessionRecords.end())
+			std::printf(
+				"             made %s from %s (sensor %s)\n", r->second.startedAt.c_str(), r->second.input.c_str(),
+				r->second.sensor.empty() ? "-" : r->second.sensor.c_str());
+	}
+	return 0;
+}
+int mapMerge(int argc, char** argv)
+{
+	std::vector<std::string> dirs;
+	std::string out, configPath;
+	bool overwrite = false, quiet = false;
+	for (int i = 2; i < argc; i++)
+	{
+		const std::string a = argv[i];
+		auto value = [&]() -> std::string {
+			if (i + 1 >= argc) usageError("map merge: " + a + " needs a value");
+			return argv[++i];
+		};
+		if (a == "--out") out = value();
+		else if (a == "--config")
+			configPath = value();
+		else if (a == "--overwrite")
+			overwrite = true;
+		else if (a == "--quiet")
+			quiet = true;
+		else if (!a.empty() && a[0] == '-')
+			usageError("map merge: unknown option '" + a + "'");
+		else
+			dirs.push_back(a);
+	}
+	if (dirs.size() != 2 || out.empty()) usageError("map merge: expected rasterslam map merge A B --out C");
+	std::error_code ec;
+	if (fs::exists(mapFilePath(out), ec) && !overwrite)
+		throw std::runtime_error("--out " + out + " holds a map already: pass --overwrite to replace it");
+	if (fs::exists(dirs[1], ec) && fs::exists(out, ec) && fs::equivalent(dirs[1], out, ec))
+		throw std::runtime_error("--out " + out + " is the map being merged in (B): write to A or a new folder");
+	if (configPath.empty()) configPath = findConfig("slam.yaml");
+	Engine engine(loadYamlFile(configPath), configPath);
+	engine.setLogLevel(quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
+	engine.loadMap(dirs[0]);
+	const auto sessionsA = engine.mapManager()->map().sessions - 1;  // loadMap counts a new session
+	const auto rep = engine.mergeMap(dirs[1]);
+	io::ensureWritableDir(out);  // only now: a merge that fails leaves no folder behind
+	engine.saveMap(out, {});
+	const auto& t = rep.T_this_other;
+	std::printf(
+		"rasterslam: merged %s (%zu local maps) into %s (%u sessions): %zu of %zu keyframes located, %zu agree on x=%.2f y=%.2f "
+		"z=%.2f yaw=%.1f deg; optimized (chi2 %.3g -> %.3g, largest correction %.2f m)\n",
+		dirs[1].c_str(), rep.localMaps, dirs[0].c_str(), sessionsA, rep.located, rep.keyframesTried, rep.agreeing, t.x(), t.y(), t.z(),
+		t.yaw() * 180 / M_PI, rep.optimization.initialError, rep.optimization.finalError, rep.maxCorrection_m);
+	std::printf(
+		"rasterslam: map of %u sessions, %zu keyframes written to %s\n", rep.sessions, rep.keyframes,
+		mapFilePath(out).c_str());
 	return 0;
 }
 }  // namespace
@@ -102,6 +168,7 @@ int mapCommand(int argc, char** argv)
 			::execv(exe.c_str(), args.data());
 			throw std::runtime_error("cannot run '" + exe + "': " + std::strerror(errno));
 		}
+		if (sub == "merge") return mapMerge(argc, argv);
 		if (sub == "info")
 		{
 			if (argc != 3) usageError("map info: expected one folder (rasterslam map info DIR)");
@@ -113,7 +180,7 @@ int mapCommand(int argc, char** argv)
 		std::cerr << "rasterslam: error: " << e.what() << "\n";
 		return kExitError;
 	}
-	usageError("map: unknown subcommand '" + sub + "' (info, export)");
+	usageError("map: unknown subcommand '" + sub + "' (info, export, merge)");
 }
 
 }  // namespace rasterslam::cli

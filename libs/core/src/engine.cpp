@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -24,6 +25,17 @@ double msSince(Clock::time_point t0)
 }
 /** The edge a relocalization gives, from the matched keyframe to the scan: the relative pose
  *  counts (the map's keyframe pose may predate an optimization). */
+/** Wall-clock time now, ISO 8601 UTC (e.g. 2026-11-29T11:02:03Z). */
+std::string isoTimeNow()
+{
+	const std::time_t t = std::time(nullptr);
+	std::tm tm{};
+	gmtime_r(&t, &tm);
+	char buf[32];
+	std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+	return buf;
+}
+
 LoopConstraint relocalizationConstraint(const RelocalizationResult& rl)
 {
 	LoopConstraint c;
@@ -318,7 +330,20 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			continue;
 		}
 
-		if (!firstStamp) firstStamp = scan->stamp;
+		if (!firstStamp)
+		{
+			firstStamp = scan->stamp;
+			if (mapManager_)
+			{
+				SessionRecord session;
+				session.firstStamp = scan->stamp;
+				session.sensor = scan->sensorLabel;
+				session.input = source.name();
+				session.startedAt = isoTimeNow();
+				std::lock_guard<std::mutex> lk(backend.mapMutex());
+				mapManager_->describeSession(session);
+			}
+		}
 		ScanRecord rec;
 		rec.index = scan->index;
 		rec.stamp = scan->stamp;

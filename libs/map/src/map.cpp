@@ -18,7 +18,8 @@ namespace
 constexpr uint32_t kMapMagic = 0x504d5352;  // "RSMP"
 // Version 0 (the loop detector's own file, before the map model) is not read: its keyframe
 // grouping cannot be turned into local maps with points.
-constexpr uint8_t kMapVersion = 1;
+// Version 1 has no session records.
+constexpr uint8_t kMapVersion = 2;
 }  // namespace
 
 std::optional<mrpt::poses::CPose3D> PoseView::operator()(uint64_t keyframe) const
@@ -94,6 +95,8 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 		if (!f.open(tmp, 1)) throw std::runtime_error("cannot write map '" + path + "'");
 		auto a = mrpt::serialization::archiveFrom(f);
 		a << kMapMagic << kMapVersion << map.sessions;
+		a << static_cast<uint32_t>(map.sessionRecords.size());
+		for (const auto& [id, r] : map.sessionRecords) a << r.id << r.firstStamp << r.startedAt << r.sensor << r.input;
 		a << static_cast<uint64_t>(map.keyframes.size());
 		for (const auto& [id, k] : map.keyframes)
 		{
@@ -153,8 +156,21 @@ Map loadMap(const std::string& dir)
 		if (magic != kMapMagic) throw std::runtime_error("not a rasterslam map");
 		if (version == 0)
 			throw std::runtime_error("map version 0 (written before the map manager): build the map again");
-		if (version != kMapVersion) throw std::runtime_error("unknown map version " + std::to_string(version));
+		if (version > kMapVersion) throw std::runtime_error("unknown map version " + std::to_string(version));
 		a >> map.sessions;
+		if (version >= 2)
+		{
+			uint32_t n = 0;
+			a >> n;
+			if (n > map.sessions) throw std::runtime_error(std::to_string(n) + " session records for " + std::to_string(map.sessions) + " sessions");
+			for (uint32_t i = 0; i < n; i++)
+			{
+				SessionRecord r;
+				a >> r.id >> r.firstStamp >> r.startedAt >> r.sensor >> r.input;
+				if (r.id >= map.sessions) throw std::runtime_error("session record " + std::to_string(r.id) + " of " + std::to_string(map.sessions) + " sessions");
+				map.sessionRecords[r.id] = r;
+			}
+		}
 		uint64_t nk = 0;
 		a >> nk;
 		for (uint64_t i = 0; i < nk; i++)

@@ -32,6 +32,8 @@ class BowLoopDetector : public LoopDetector
 	std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map& map, const PoseView& poses) override;
 	RelocalizationResult relocalize(
 		const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses) override;
+	RelocalizationResult locate(
+		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe) override;
 	std::vector<uint8_t> savePlaceIndex() override;
 	void loadPlaceIndex(const Map& map) override;
 
@@ -45,6 +47,9 @@ class BowLoopDetector : public LoopDetector
 		cv::Mat desc;
 		std::vector<Eigen::Vector3f> pts;
 	};
+	/** The database's best candidates for the query, each verified; the one with the most
+	 *  inliers wins. */
+	RelocalizationResult relocalizeQuery(const Query& q, uint32_t seed, const Map& map, const PoseView& poses);
 	/** Matches the query against the local map's points (only those seen by keyframe
 	 *  `onlyKeyframe` when >= 0) and fits the rigid transform with RANSAC. */
 	/** The fit's T maps the query frame into the local map's anchor frame; its inliers are

@@ -31,6 +31,38 @@ RelocalizationResult BowLoopDetector::relocalize(
 		res.reason = "features";
 		return res;
 	}
+	return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses);
+}
+
+
+RelocalizationResult BowLoopDetector::locate(
+	const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe)
+{
+	RelocalizationResult res;
+	if (!vocab_ || db_.size() == 0)
+	{
+		res.reason = "empty-map";
+		return res;
+	}
+	Query q;
+	q.desc.create(0, 32, CV_8U);
+	for (std::size_t i = 0; i < query.points(); i++)
+		if (onlyKeyframe < 0 || (query.observers[i] & (1u << onlyKeyframe)))
+		{
+			q.pts.emplace_back(query.xyz[3 * i], query.xyz[3 * i + 1], query.xyz[3 * i + 2]);
+			q.desc.push_back(cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&query.descriptors[32 * i])));
+		}
+	if (q.pts.size() < static_cast<std::size_t>(ransac_.minInliers))
+	{
+		res.reason = "features";
+		return res;
+	}
+	return relocalizeQuery(q, static_cast<uint32_t>(query.id * 29 + 7 + onlyKeyframe), map, poses);
+}
+
+RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t seed, const Map& map, const PoseView& poses)
+{
+	RelocalizationResult res;
 	bow::BowVector b;
 	vocab_->transform(descriptorsOf(q.desc), b);
 	const auto results = db_.query(b, static_cast<std::size_t>(maxCandidates_ + 1));
@@ -47,7 +79,7 @@ RelocalizationResult BowLoopDetector::relocalize(
 		const auto data = candidate(map, it->first);  // offline: read from the store
 		if (!data) continue;
 		const auto& lm = *data;
-		const auto fit = verify(q, lm, static_cast<uint32_t>(scan.index * 17 + 3 + lm.id));
+		const auto fit = verify(q, lm, static_cast<uint32_t>(seed + lm.id));
 		if (fit.ok && fit.inliers.size() > res.inliers)
 		{
 			const uint64_t kf = nearestKeyframe(lm, fit.T, poses);

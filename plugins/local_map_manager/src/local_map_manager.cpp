@@ -27,6 +27,10 @@ class LocalMapManager : public MapManager
 	MappingUpdate finish(const PoseView& poses) override;
 	void loopAccepted(uint64_t fromKf, uint64_t toKf, double stamp) override;
 	const Map& map() const override { return map_; }
+	void describeSession(const SessionRecord& session) override;
+	Added addMap(
+		const Map& other, const std::map<uint64_t, mrpt::poses::CPose3D>& poses,
+		const std::vector<std::pair<uint64_t, uint64_t>>& links) override;
 	void loadMap(const std::string& dir) override;
 	~LocalMapManager() override;
 	void saveMap(
@@ -436,6 +440,82 @@ void LocalMapManager::loadMap(const std::string& dir)
 	MRPT_LOG_INFO_FMT(
 		"map %s: %zu sessions, %zu keyframes, %zu local maps", dir.c_str(), static_cast<std::size_t>(session_),
 		map_.keyframes.size(), map_.localMaps.size());
+}
+
+void LocalMapManager::describeSession(const SessionRecord& session)
+{
+	auto r = session;
+	r.id = session_;
+	map_.sessionRecords[session_] = r;
+}
+
+MapManager::Added LocalMapManager::addMap(
+	const Map& other, const std::map<uint64_t, mrpt::poses::CPose3D>& poses,
+	const std::vector<std::pair<uint64_t, uint64_t>>& links)
+{
+	Added out;
+	// The other map's sessions, keyframes and local maps follow this map's, in their order.
+	const uint32_t firstSession = session_;
+	for (uint32_t s = 0; s < other.sessions; s++) out.sessionIds[s] = firstSession + s;
+	uint64_t nextKf = map_.nextKeyframeId(), nextLm = map_.nextLocalMapId();
+	for (const auto& [id, k] : other.keyframes) out.keyframeIds[id] = nextKf++;
+	for (const auto& [id, lm] : other.localMaps) out.localMapIds[id] = nextLm++;
+	for (const auto& [s, r] : other.sessionRecords)
+	{
+		auto copy = r;
+		copy.id = out.sessionIds.at(s);
+		map_.sessionRecords[copy.id] = copy;
+	}
+	for (const auto& [id, k] : other.keyframes)
+	{
+		const auto pose = poses.find(id);
+		if (pose == poses.end()) throw std::runtime_error("merge: keyframe " + std::to_string(id) + " has no pose");
+		auto copy = std::make_shared<Keyframe>(*k);
+		copy->id = out.keyframeIds.at(id);
+		copy->session = out.sessionIds.at(k->session);
+		copy->pose = pose->second;
+		map_.priorPoses[copy->id] = pose->second;
+		map_.keyframes[copy->id] = copy;
+	}
+	double lastStamp = 0;
+	for (const auto& [id, stub] : other.localMaps)
+	{
+		auto lm = std::make_shared<LocalMap>(*other.data(id));
+		lm->id = out.localMapIds.at(id);
+		lm->session = out.sessionIds.at(lm->session);
+		for (auto& k : lm->keyframes) k = out.keyframeIds.at(k);
+		lm->online = true;
+		lastStamp = std::max(lastStamp, lm->updatedStamp);
+		// The place index needs the image's words: the image is kept losslessly, so they are
+		// those the map had when it was made.
+		MappingUpdate::Finished fin;
+		fin.localMap = lm->id;
+		if (!lm->imagePng.empty())
+		{
+			const cv::Mat img = cv::imdecode(lm->imagePng, cv::IMREAD_GRAYSCALE);
+			if (img.empty()) throw std::runtime_error("merge: the image of local map " + std::to_string(id) + " cannot be decoded");
+			std::vector<cv::KeyPoint> kps;
+			cv::Mat desc;
+			orb_->extract(img, kps, desc);
+			if (desc.rows > 0) fin.imageDescriptors.assign(desc.datastart, desc.dataend);
+		}
+		out.localMaps.push_back(std::move(fin));
+		map_.localMaps[lm->id] = lm;
+		goOffline(lm->id, "merged");
+	}
+	for (const auto& e : other.graph.edges)
+		map_.graph.add(out.localMapIds.at(e.from), out.localMapIds.at(e.to), e.kind, e.stamp);
+	for (const auto& [mine, theirs] : links)
+	{
+		if (!map_.localMaps.count(mine)) throw std::runtime_error("merge: no local map " + std::to_string(mine));
+		map_.graph.add(mine, out.localMapIds.at(theirs), LocalMapGraph::EdgeKind::Relocalization, lastStamp);
+	}
+	map_.sessions = firstSession + other.sessions;
+	session_ = map_.sessions;
+	MRPT_LOG_INFO_FMT(
+		"merged %zu keyframes and %zu local maps of %u sessions", other.keyframes.size(), other.localMaps.size(),
+		other.sessions);
+	return out;
 }
 
 void LocalMapManager::saveMap(

@@ -89,6 +89,23 @@ struct RunResult
 	double wall_s = 0;
 };
 
+/** What Engine::mergeMap() found and did. */
+struct MergeReport
+{
+	std::size_t localMaps = 0;  //!< local maps of the map merged in
+	std::size_t keyframesTried = 0;  //!< its keyframes, each located with the points it saw
+	std::size_t located = 0;  //!< of those, found in the loaded map
+	std::size_t agreeing = 0;  //!< of those, agreeing on where the other map lies (linked)
+	/** The other map's frame in the loaded one's, from the agreeing hits (before the
+	 *  optimization). */
+	mrpt::poses::CPose3D T_this_other;
+	OptimizerResult optimization;
+	uint32_t sessions = 0;  //!< sessions of the merged map
+	std::size_t keyframes = 0;
+	/** Largest move the optimization gave a keyframe of the other map, m. */
+	double maxCorrection_m = 0;
+};
+
 /** Top-level config sections: plugins, rasterizer, odometry, map_manager, loop_detector,
  *  optimizer, engine. Each role section is {class: ns::Name, params: {...}}; odometry is
  *  required, the others are optional. Unknown sections or keys throw ConfigError. */
@@ -109,6 +126,13 @@ class Engine : public mrpt::system::COutputLogger
 	/** Loads a saved map (--map-in): the map manager reads it, the loop detector restores
 	 *  its place index from it. Needs a map_manager. */
 	void loadMap(const std::string& dir);
+	/** Adds a map built separately (saved in `dir`) to the loaded one: each of its
+	 *  keyframes is located in the loaded map with no pose prior (with the points it saw in its
+	 *  local map); at least engine.anchor_min_agreeing of them must agree on where the other map lies (else it
+	 *  throws: no overlap). The other map's keyframes are moved there, tied by their relative
+	 *  poses and the agreeing hits, and optimized with the loaded map fixed. Save with
+	 *  saveMap(dir, {}). Needs a map_manager, a loop_detector and an optimizer. */
+	MergeReport mergeMap(const std::string& dir);
 	/** Saves the map with the poses of `graph` (optimized) and the place index. */
 	void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph);
 

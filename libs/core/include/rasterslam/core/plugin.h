@@ -14,6 +14,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -143,6 +144,26 @@ class MapManager : public Plugin
 	/** An accepted loop between two keyframes (the engine made it a graph edge). */
 	virtual void loopAccepted(uint64_t /*fromKf*/, uint64_t /*toKf*/, double /*stamp*/) {}
 	virtual const Map& map() const = 0;
+	/** What the engine knows of the session being made (its id is the manager's to set). */
+	virtual void describeSession(const SessionRecord& /*session*/) {}
+	/** What addMap() did: the other map's ids as they are in this one, and the local maps
+	 *  it added with the ORB descriptors of their images, for the place index. */
+	struct Added
+	{
+		std::map<uint64_t, uint64_t> keyframeIds, localMapIds;
+		std::map<uint32_t, uint32_t> sessionIds;
+		std::vector<MappingUpdate::Finished> localMaps;
+	};
+	/** Adds a map built separately (`map merge`): its sessions, keyframes at `poses` (this
+	 *  map's frame, keyed by the other map's keyframe ids), local maps and graph, renumbered
+	 *  after this map's, and a relocalization edge for each (this map's local map, the
+	 *  other's) in `links`. */
+	virtual Added addMap(
+		const Map& /*other*/, const std::map<uint64_t, mrpt::poses::CPose3D>& /*poses*/,
+		const std::vector<std::pair<uint64_t, uint64_t>>& /*links*/)
+	{
+		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot merge maps");
+	}
 	/** Replaces the map with one loaded from disk; the next session continues its ids. */
 	virtual void loadMap(const std::string& dir) = 0;
 	/** Writes the map (open local map included) with the given poses and place index. */
@@ -205,6 +226,15 @@ class LoopDetector : public Plugin
 	/** Locates a scan in the map with no pose prior. */
 	virtual RelocalizationResult relocalize(
 		const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses) = 0;
+	/** Locates a local map of another map (its points, in its anchor's frame; only those its
+	 *  keyframe number `onlyKeyframe` saw, when >= 0) with no pose prior; the result's pose
+	 *  is that of its anchor keyframe in `map`'s frame. */
+	virtual RelocalizationResult locate(
+		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe = -1)
+	{
+		(void)query, (void)map, (void)poses, (void)onlyKeyframe;
+		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot locate local maps");
+	}
 	/** The place index as bytes to save with the map, and the class name that reads them. */
 	virtual std::vector<uint8_t> savePlaceIndex() = 0;
 	/** Restores a place index saved with `map` (after the map manager loaded it). */

@@ -31,6 +31,21 @@ struct PoseView
 	mrpt::poses::CPose3D at(uint64_t keyframe) const;
 };
 
+/** A session: one run (or one map merged in) that added keyframes and local maps. */
+struct SessionRecord
+{
+	uint32_t id = 0;
+	double firstStamp = 0;  //!< the first scan's time stamp (the input's clock)
+	std::string startedAt;  //!< wall-clock time the session was made, ISO 8601 UTC
+	std::string sensor;  //!< sensor label of its scans
+	std::string input;  //!< what it read (the rawlog's path), or the merged map's folder
+	bool operator==(const SessionRecord& o) const
+	{
+		return id == o.id && firstStamp == o.firstStamp && startedAt == o.startedAt && sensor == o.sensor &&
+			   input == o.input;
+	}
+};
+
 /** The map model. The map manager is its only writer; the loop detector and the engine read
  *  it through a const reference. */
 class Map
@@ -51,6 +66,8 @@ class Map
 	std::vector<uint8_t> placeIndex;
 	/** Sessions stored in the map (the next session's id is this count). */
 	uint32_t sessions = 0;
+	/** What is known of each session (maps of version 1 have none). */
+	std::map<uint32_t, SessionRecord> sessionRecords;
 
 	uint64_t nextKeyframeId() const;
 	uint64_t nextLocalMapId() const;

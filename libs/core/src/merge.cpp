@@ -1,0 +1,145 @@
+// `rasterslam map merge`: two maps built separately become one (paper, "Map Management":
+// sessions that land in one map). The loaded map stays where it is; the other is located in
+// it local map by local map, and only a transform that several of them agree on is used.
+#include <rasterslam/core/engine.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <set>
+#include <stdexcept>
+
+namespace rasterslam
+{
+namespace
+{
+double angleDeg(const mrpt::poses::CPose3D& d)
+{
+	return Eigen::AngleAxisd(d.getRotationMatrix().asEigen()).angle() * 180 / M_PI;
+}
+}  // namespace
+
+MergeReport Engine::mergeMap(const std::string& dir)
+{
+	if (!mapManager_ || !loopDetector_ || !optimizer_)
+		throw ConfigError(source_ + ": merging maps needs a map_manager, a loop_detector and an optimizer");
+	const Map other = rasterslam::loadMap(dir);
+	const Map& map = mapManager_->map();
+	if (map.localMaps.empty()) throw std::runtime_error("the first map has no local maps");
+	MergeReport rep;
+	rep.localMaps = other.localMaps.size();
+	PoseView here;
+	here.prior = &map.priorPoses;
+
+	// Each keyframe of the other map (the points of a local map it saw), located with no
+	// prior: where it puts the other map's frame. Keyframes, not local maps, so that a small
+	// map still gives several independent hits.
+	struct Hit
+	{
+		uint64_t theirs = 0;  //!< local map of the other map
+		uint64_t keyframe = 0;  //!< keyframe of the other map
+		RelocalizationResult rl;
+		mrpt::poses::CPose3D T_this_other;
+	};
+	std::vector<Hit> hits;
+	std::set<uint64_t> tried;
+	for (const auto& [id, stub] : other.localMaps)
+	{
+		const auto lm = other.data(id);
+		const auto anchorPose = other.priorPoses.at(lm->anchor());
+		for (std::size_t k = 0; k < lm->keyframes.size(); k++)
+		{
+			if (!tried.insert(lm->keyframes[k]).second) continue;  // shared with the previous local map
+			const auto rl = loopDetector_->locate(*lm, map, here, static_cast<int>(k));
+			if (!rl.found) continue;
+			hits.push_back({id, lm->keyframes[k], rl, rl.pose + (mrpt::poses::CPose3D() - anchorPose)});
+			MRPT_LOG_DEBUG_STREAM(
+				"keyframe " << lm->keyframes[k] << " of " << dir << " found at local map " << rl.localMap << " ("
+							<< rl.inliers << " inliers)");
+		}
+	}
+	rep.keyframesTried = tried.size();
+	rep.located = hits.size();
+	// The hit that the most others agree with (compared where each other hit is: a heading
+	// difference counts as the offset it makes there).
+	std::vector<std::size_t> best;
+	for (std::size_t i = 0; i < hits.size(); i++)
+	{
+		std::vector<std::size_t> agree;
+		for (std::size_t j = 0; j < hits.size(); j++)
+		{
+			const auto at = other.priorPoses.at(hits[j].keyframe);
+			const auto d = (hits[i].T_this_other + at) - (hits[j].T_this_other + at);
+			if (d.norm() < anchorAgree_m_ && angleDeg(d) < anchorAgree_deg_) agree.push_back(j);
+		}
+		if (agree.size() > best.size()) best = agree;
+	}
+	rep.agreeing = best.size();
+	if (best.size() < static_cast<std::size_t>(anchorMinAgreeing_))
+		throw std::runtime_error(
+			"no overlap found between the maps: " + std::to_string(hits.size()) + " of " +
+			std::to_string(tried.size()) + " keyframes of '" + dir + "' were located, " +
+			std::to_string(best.size()) + " agree on one place, " + std::to_string(anchorMinAgreeing_) +
+			" needed (engine.anchor_min_agreeing)");
+	rep.T_this_other = hits[best.front()].T_this_other;
+
+	// The pose graph: the loaded map's keyframes that a hit names (fixed), the other map's
+	// keyframes (numbered after the loaded map's), consecutive ones tied by their relative
+	// pose in the other map, and each agreeing hit as a relocalization edge (robust loss).
+	mrpt::graphs::CNetworkOfPoses3DInf g;
+	const uint64_t offset = map.nextKeyframeId();
+	std::set<mrpt::graphs::TNodeID> fixed;
+	EdgeSet uncertain;
+	for (const auto& [id, p] : other.priorPoses) g.nodes[offset + id] = rep.T_this_other + p;
+	mrpt::math::CMatrixDouble66 seqInfo;
+	seqInfo.setZero();
+	for (int i = 0; i < 3; i++)
+	{
+		seqInfo(i, i) = 1.0 / (0.05 * 0.05);  // the other map's own estimate: a few cm
+		seqInfo(i + 3, i + 3) = 1.0 / std::pow(0.5 * M_PI / 180, 2);
+	}
+	std::optional<uint64_t> prev;
+	for (const auto& [id, k] : other.keyframes)
+	{
+		if (prev)
+			g.insertEdge(
+				offset + *prev, offset + id,
+				mrpt::poses::CPose3DPDFGaussianInf(
+					other.priorPoses.at(id) - other.priorPoses.at(*prev), seqInfo));
+		prev = id;
+	}
+	std::set<std::pair<uint64_t, uint64_t>> links;
+	for (const auto i : best)
+	{
+		const auto& h = hits[i];
+		g.nodes[h.rl.keyframe] = h.rl.keyframePose;
+		fixed.insert(h.rl.keyframe);
+		mrpt::math::CMatrixDouble66 info;
+		info.setIdentity();
+		info *= 100;
+		// The hit placed the local map's anchor; the edge goes to the keyframe it was made from.
+		const auto anchor = other.localMaps.at(h.theirs)->anchor();
+		const auto T_this_kf = h.rl.pose + (other.priorPoses.at(h.keyframe) - other.priorPoses.at(anchor));
+		g.insertEdge(
+			h.rl.keyframe, offset + h.keyframe, mrpt::poses::CPose3DPDFGaussianInf(T_this_kf - h.rl.keyframePose, info));
+		uncertain.insert({h.rl.keyframe, offset + h.keyframe});
+		links.emplace(h.rl.localMap, h.theirs);
+	}
+	g.root = *fixed.begin();
+	const auto before = g.nodes;
+	rep.optimization = optimizer_->optimize(g, uncertain, fixed);
+	std::map<uint64_t, mrpt::poses::CPose3D> poses;
+	for (const auto& [id, p] : other.priorPoses)
+	{
+		poses[id] = g.nodes.at(offset + id);
+		rep.maxCorrection_m = std::max(rep.maxCorrection_m, poses[id].distanceTo(before.at(offset + id)));
+	}
+
+	const auto added = mapManager_->addMap(other, poses, {links.begin(), links.end()});
+	for (const auto& fin : added.localMaps)
+		loopDetector_->index(*mapManager_->map().data(fin.localMap), fin.imageDescriptors);
+	rep.sessions = mapManager_->map().sessions;
+	rep.keyframes = mapManager_->map().keyframes.size();
+	return rep;
+}
+
+}  // namespace rasterslam
