@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <set>
 
 #include "test_support.h"
 
@@ -310,6 +311,60 @@ TEST(Mapping, SessionsShareAMapWithUniqueIdsAndAMapIsNotReplacedByAccident)
 	EXPECT_EQ(loadMap(map).sessions, 1u);
 	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map info " + (dir / "nope").string()).exitCode, 1);
 	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map bogus").exitCode, 2);
+}
+
+TEST(Mapping, PruneKeepsTheNewestOfEachPlaceAndTheMapStaysUsable)
+{
+	const test::ScopedTempDir dir("mapping");
+	const auto cfg = slamConfig(dir.path(), false, "");
+	const auto map = (dir / "map").string();
+	ASSERT_EQ(run(cfg, dir / "s1", " --map-out " + map).exitCode, 0);
+	ASSERT_EQ(run(cfg, dir / "s2", " --map-in " + map + " --map-out " + map).exitCode, 0);
+	const Map two = loadMap(map);
+	ASSERT_EQ(two.sessions, 2u);
+	auto prune = [&](const std::string& args) {
+		return test::runCommand(
+			test::bin("rasterslam") + " map prune " + map + " --config " + cfg.string() + " --quiet " + args);
+	};
+	auto bytes = [&] {
+		std::ifstream f(mapFilePath(map), std::ios::binary);
+		return std::string((std::istreambuf_iterator<char>(f)), {});
+	};
+	const auto before = bytes();
+
+	// A dry run changes nothing; a date before every stamp drops nothing; dropping what the
+	// map was saved with online, or everything, is not possible.
+	auto r = prune("--keep-per-place 1 --dry-run");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_NE(r.output.find("would drop"), std::string::npos) << r.output;
+	EXPECT_EQ(bytes(), before);
+	r = prune("--before 2000-01-01");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_NE(r.output.find("dropped 0 of"), std::string::npos) << r.output;
+	EXPECT_EQ(prune("--before yesterday").exitCode, 2);
+	EXPECT_EQ(prune("--keep-per-place 0").exitCode, 2);
+	EXPECT_EQ(prune("").exitCode, 2);
+
+	// The same loop driven twice: each place keeps the second session's local map.
+	r = prune("--keep-per-place 1");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const Map one = loadMap(map);
+	EXPECT_LT(one.localMaps.size(), two.localMaps.size());
+	std::size_t kept[2] = {0, 0}, had[2] = {0, 0};
+	for (const auto& [id, lm] : two.localMaps) ++had[lm->session];
+	for (const auto& [id, lm] : one.localMaps) ++kept[lm->session];
+	EXPECT_EQ(kept[1], had[1]);  // the newest session's were online when saved
+	EXPECT_LT(kept[0], had[0] / 2);
+	// No keyframe is left without a local map, no edge without its ends (loadMap checks).
+	std::set<uint64_t> held;
+	for (const auto& [id, lm] : one.localMaps) held.insert(lm->keyframes.begin(), lm->keyframes.end());
+	EXPECT_EQ(held.size(), one.keyframes.size());
+	for (const auto& [id, p] : one.priorPoses) EXPECT_LT(p.distanceTo(two.priorPoses.at(id)), 1e-9);
+
+	// The pruned map's place index knows only what is left: a third session is located in it.
+	r = run(cfg, dir / "s3", " --last 150 --map-in " + map + " --require-localization");
+	EXPECT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_NE(r.output.find("located in the prior map"), std::string::npos) << r.output;
 }
 
 TEST(Mapping, ASessionIsAnchoredOnlyWhenSeveralHitsAgree)

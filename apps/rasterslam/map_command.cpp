@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
+#include <ctime>
 #include <cstring>
 #include <vector>
 #include <filesystem>
@@ -25,6 +27,8 @@ namespace
 const char* kMapUsage = R"(usage: rasterslam map info DIR
        rasterslam map export DIR --out DIR2
        rasterslam map merge A B --out C [--config FILE] [--overwrite] [--quiet]
+       rasterslam map prune DIR (--before WHEN | --keep-per-place N [--place-radius M])
+                            [--dry-run] [--config FILE]
   info DIR     sessions, local maps online and offline, keyframes, points, sizes on disk and
                the time span of the map saved in DIR (by rasterslam run --map-out)
   export DIR   writes DIR2/map.graph (keyframe pose graph, MRPT text format),
@@ -39,6 +43,16 @@ const char* kMapUsage = R"(usage: rasterslam map info DIR
                and graph follow A's (ids renumbered), linked by relocalization edges.
                --config: the loop detector and optimizer to use (default: slam.yaml);
                C must not hold a map unless --overwrite (C may be A: A is then replaced)
+  prune DIR    drops local maps that were offline when the map was saved, with their
+               place-index entries and the keyframes no other local map holds, and writes
+               the map back to DIR (atomically):
+                 --before WHEN       those last updated before WHEN: a date (2026-06-01,
+                                     2026-06-01T12:00:00Z, UTC) or seconds in the input's clock
+                 --keep-per-place N  all but the newest N of each place: going from the
+                                     newest (later session, then later stamp), a local map
+                                     goes when N kept ones have their anchor within M metres
+                                     of its anchor (--place-radius, default 10)
+               with both, only what both drop goes; --dry-run lists and changes nothing
 )";
 
 int mapInfo(const std::string& dir)
@@ -145,6 +159,97 @@ int mapMerge(int argc, char** argv)
 		mapFilePath(out).c_str());
 	return 0;
 }
+/** Seconds since the Unix epoch of a UTC date (YYYY-MM-DD[THH:MM:SS][Z]), or a number. */
+double parseWhen(const std::string& v)
+{
+	std::tm tm{};
+	int Y = 0, M = 0, D = 0, h = 0, m = 0, sec = 0;
+	char tail = 0;
+	const int n = std::sscanf(v.c_str(), "%4d-%2d-%2dT%2d:%2d:%2d%c", &Y, &M, &D, &h, &m, &sec, &tail);
+	if ((n == 3 && v.size() == 10) || n == 6 || (n == 7 && tail == 'Z'))
+	{
+		if (M < 1 || M > 12 || D < 1 || D > 31 || h > 23 || m > 59 || sec > 60)
+			usageError("map prune: --before '" + v + "' is not a valid date");
+		tm.tm_year = Y - 1900;
+		tm.tm_mon = M - 1;
+		tm.tm_mday = D;
+		tm.tm_hour = h;
+		tm.tm_min = m;
+		tm.tm_sec = sec;
+		return static_cast<double>(::timegm(&tm));
+	}
+	std::size_t used = 0;
+	double x = 0;
+	try
+	{
+		x = std::stod(v, &used);
+	}
+	catch (const std::exception&)
+	{
+		used = 0;
+	}
+	if (used != v.size() || !std::isfinite(x))
+		usageError("map prune: --before '" + v + "' is neither a date (YYYY-MM-DD[THH:MM:SS]) nor seconds");
+	return x;
+}
+
+int mapPrune(int argc, char** argv)
+{
+	std::string dir, configPath;
+	PruneOptions opts;
+	bool quiet = false;
+	for (int i = 2; i < argc; i++)
+	{
+		const std::string a = argv[i];
+		auto value = [&]() -> std::string {
+			if (i + 1 >= argc) usageError("map prune: " + a + " needs a value");
+			return argv[++i];
+		};
+		if (a == "--before") opts.before = parseWhen(value());
+		else if (a == "--keep-per-place")
+		{
+			const auto v = value();
+			const auto n = parseIndexArg(a, v);
+			if (n < 1) usageError("map prune: --keep-per-place must be >= 1");
+			opts.keepPerPlace = n;
+		}
+		else if (a == "--place-radius")
+		{
+			const auto v = value();
+			char* end = nullptr;
+			opts.placeRadius_m = std::strtod(v.c_str(), &end);
+			if (end == v.c_str() || *end || !(opts.placeRadius_m > 0) || !std::isfinite(opts.placeRadius_m))
+				usageError("map prune: --place-radius must be a distance > 0 in metres");
+		}
+		else if (a == "--dry-run")
+			opts.dryRun = true;
+		else if (a == "--config")
+			configPath = value();
+		else if (a == "--quiet")
+			quiet = true;
+		else if (!a.empty() && a[0] == '-')
+			usageError("map prune: unknown option '" + a + "'");
+		else if (dir.empty())
+			dir = a;
+		else
+			usageError("map prune: expected one folder");
+	}
+	if (dir.empty()) usageError("map prune: expected rasterslam map prune DIR (--before WHEN | --keep-per-place N)");
+	if (!opts.before && !opts.keepPerPlace) usageError("map prune: give --before WHEN or --keep-per-place N");
+	if (configPath.empty()) configPath = findConfig("slam.yaml");
+	Engine engine(loadYamlFile(configPath), configPath);
+	engine.setLogLevel(quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_WARN);
+	engine.loadMap(dir);
+	const auto rep = engine.pruneMap(opts);
+	std::string ids;
+	for (const auto id : rep.dropped) ids += (ids.empty() ? "" : " ") + std::to_string(id);
+	if (!opts.dryRun && !rep.dropped.empty()) engine.saveMap(dir, {});
+	std::printf(
+		"rasterslam: %s %zu of %zu local maps (%zu places)%s%s%s\n", opts.dryRun ? "would drop" : "dropped",
+		rep.dropped.size(), rep.localMaps, rep.places, ids.empty() ? "" : ": ", ids.c_str(),
+		opts.dryRun ? "" : mrpt::format("; %zu keyframes dropped with them", rep.keyframesDropped).c_str());
+	return 0;
+}
 }  // namespace
 
 int mapCommand(int argc, char** argv)
@@ -169,6 +274,7 @@ int mapCommand(int argc, char** argv)
 			throw std::runtime_error("cannot run '" + exe + "': " + std::strerror(errno));
 		}
 		if (sub == "merge") return mapMerge(argc, argv);
+		if (sub == "prune") return mapPrune(argc, argv);
 		if (sub == "info")
 		{
 			if (argc != 3) usageError("map info: expected one folder (rasterslam map info DIR)");
@@ -180,7 +286,7 @@ int mapCommand(int argc, char** argv)
 		std::cerr << "rasterslam: error: " << e.what() << "\n";
 		return kExitError;
 	}
-	usageError("map: unknown subcommand '" + sub + "' (info, export, merge)");
+	usageError("map: unknown subcommand '" + sub + "' (info, export, merge, prune)");
 }
 
 }  // namespace rasterslam::cli

@@ -193,6 +193,7 @@ Map loadMap(const std::string& dir)
 						"local map " + std::to_string(lm->id) + " refers to missing keyframe " + std::to_string(k));
 			if (map.localMaps.count(lm->id))
 				throw std::runtime_error("local map id " + std::to_string(lm->id) + " twice");
+			if (lm->online) map.onlineWhenSaved.insert(lm->id);
 			map.localMaps[lm->id] = lm;
 		}
 		a >> map.graph >> map.placeIndexClass >> map.placeIndex;

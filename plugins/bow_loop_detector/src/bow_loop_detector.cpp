@@ -289,6 +289,19 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	return out;
 }
 
+void BowLoopDetector::forget(uint64_t localMap)
+{
+	for (auto it = entryMap_.begin(); it != entryMap_.end();)
+		if (it->second == localMap)
+		{
+			db_.remove(it->first);
+			it = entryMap_.erase(it);
+		}
+		else
+			++it;
+	trainingImages_.erase(localMap);
+}
+
 std::vector<uint8_t> BowLoopDetector::savePlaceIndex()
 {
 	if (!vocab_)

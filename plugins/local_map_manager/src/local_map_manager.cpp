@@ -32,6 +32,7 @@ class LocalMapManager : public MapManager
 		const Map& other, const std::map<uint64_t, mrpt::poses::CPose3D>& poses,
 		const std::vector<std::pair<uint64_t, uint64_t>>& links) override;
 	void loadMap(const std::string& dir) override;
+	std::size_t removeLocalMaps(const std::set<uint64_t>& localMaps) override;
 	~LocalMapManager() override;
 	void saveMap(
 		const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
@@ -518,12 +519,67 @@ MapManager::Added LocalMapManager::addMap(
 	return out;
 }
 
+std::size_t LocalMapManager::removeLocalMaps(const std::set<uint64_t>& ids)
+{
+	for (const auto id : ids)
+	{
+		const auto it = map_.localMaps.find(id);
+		if (it == map_.localMaps.end()) throw std::runtime_error("no local map " + std::to_string(id));
+		if (std::find(open_.begin(), open_.end(), it->second->anchor()) != open_.end() || lastLocalMap_ == id)
+			throw std::runtime_error("local map " + std::to_string(id) + " is being built on");
+		map_.localMaps.erase(it);
+		routeAt_.erase(id);
+		if (map_.offline && map_.offline->contains(id))
+		{
+			std::error_code ec;
+			std::filesystem::remove(map_.offline->pathOf(id), ec);
+		}
+	}
+	auto& edges = map_.graph.edges;
+	edges.erase(
+		std::remove_if(
+			edges.begin(), edges.end(), [&](const auto& e) { return ids.count(e.from) || ids.count(e.to); }),
+		edges.end());
+	std::set<uint64_t> held;
+	for (const auto& [id, lm] : map_.localMaps) held.insert(lm->keyframes.begin(), lm->keyframes.end());
+	std::size_t removed = 0;
+	for (auto it = map_.keyframes.begin(); it != map_.keyframes.end();)
+		if (!held.count(it->first) && !clouds_.count(it->first))
+		{
+			map_.priorPoses.erase(it->first);
+			it = map_.keyframes.erase(it);
+			++removed;
+		}
+		else
+			++it;
+	return removed;
+}
+
 void LocalMapManager::saveMap(
 	const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
 	const std::vector<uint8_t>& placeIndex)
 {
 	map_.placeIndexClass = placeIndexClass;
 	map_.placeIndex = placeIndex;
+	// A session that added nothing (a prune, a merge, a run that saw no keyframe) is no
+	// session of the map.
+	bool added = false;
+	for (const auto& [id, k] : map_.keyframes) added = added || k->session == session_;
+	const uint32_t sessions = map_.sessions;
+	std::optional<SessionRecord> record;
+	if (!added && map_.sessions == session_ + 1)
+	{
+		map_.sessions = session_;
+		if (const auto it = map_.sessionRecords.find(session_); it != map_.sessionRecords.end())
+		{
+			record = it->second;
+			map_.sessionRecords.erase(it);
+		}
+	}
+	auto restore = [&] {
+		map_.sessions = sessions;
+		if (record) map_.sessionRecords[session_] = *record;
+	};
 	try
 	{
 		rasterslam::saveMap(map_, poses, dir);
@@ -531,8 +587,10 @@ void LocalMapManager::saveMap(
 	catch (...)
 	{
 		map_.placeIndex.clear();
+		restore();
 		throw;
 	}
+	restore();
 	map_.placeIndex.clear();
 	map_.placeIndex.shrink_to_fit();
 	MRPT_LOG_INFO_FMT(

@@ -106,6 +106,25 @@ struct MergeReport
 	double maxCorrection_m = 0;
 };
 
+/** What `map prune` drops: local maps not online when the map was saved that are older than
+ *  `before` (their last update's stamp, the input's clock), and/or not among the newest
+ *  `keepPerPlace` of their place (local maps whose anchors lie within `placeRadius_m`);
+ *  with both, only those both rules drop. */
+struct PruneOptions
+{
+	std::optional<double> before;
+	std::optional<std::size_t> keepPerPlace;
+	double placeRadius_m = 10;
+	bool dryRun = false;  //!< report, change nothing
+};
+struct PruneReport
+{
+	std::size_t localMaps = 0;
+	std::size_t places = 0;  //!< local maps with no kept one within the radius (a rough count)
+	std::vector<uint64_t> dropped;  //!< local maps
+	std::size_t keyframesDropped = 0;
+};
+
 /** Top-level config sections: plugins, rasterizer, odometry, map_manager, loop_detector,
  *  optimizer, engine. Each role section is {class: ns::Name, params: {...}}; odometry is
  *  required, the others are optional. Unknown sections or keys throw ConfigError. */
@@ -133,6 +152,9 @@ class Engine : public mrpt::system::COutputLogger
 	 *  poses and the agreeing hits, and optimized with the loaded map fixed. Save with
 	 *  saveMap(dir, {}). Needs a map_manager, a loop_detector and an optimizer. */
 	MergeReport mergeMap(const std::string& dir);
+	/** Drops local maps of the loaded map (`map prune`) with their place-index entries and
+	 *  the keyframes no local map holds any more. Throws when every local map would go. */
+	PruneReport pruneMap(const PruneOptions& opts);
 	/** Saves the map with the poses of `graph` (optimized) and the place index. */
 	void saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph);
 

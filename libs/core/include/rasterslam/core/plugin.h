@@ -164,6 +164,12 @@ class MapManager : public Plugin
 	{
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot merge maps");
 	}
+	/** Removes local maps (`map prune`) with their graph edges, and the keyframes no
+	 *  remaining local map holds. Returns the keyframes removed. */
+	virtual std::size_t removeLocalMaps(const std::set<uint64_t>& /*localMaps*/)
+	{
+		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot remove local maps");
+	}
 	/** Replaces the map with one loaded from disk; the next session continues its ids. */
 	virtual void loadMap(const std::string& dir) = 0;
 	/** Writes the map (open local map included) with the given poses and place index. */
@@ -235,6 +241,8 @@ class LoopDetector : public Plugin
 		(void)query, (void)map, (void)poses, (void)onlyKeyframe;
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot locate local maps");
 	}
+	/** A local map leaves the map (`map prune`): its place-index entry goes. */
+	virtual void forget(uint64_t /*localMap*/) {}
 	/** The place index as bytes to save with the map, and the class name that reads them. */
 	virtual std::vector<uint8_t> savePlaceIndex() = 0;
 	/** Restores a place index saved with `map` (after the map manager loaded it). */

@@ -13,6 +13,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,8 @@ class Map
 	std::vector<uint8_t> placeIndex;
 	/** Sessions stored in the map (the next session's id is this count). */
 	uint32_t sessions = 0;
+	/** Local maps that were online when the map was saved (filled by loadMap()). */
+	std::set<uint64_t> onlineWhenSaved;
 	/** What is known of each session (maps of version 1 have none). */
 	std::map<uint32_t, SessionRecord> sessionRecords;
 

@@ -1,10 +1,11 @@
-// `rasterslam map merge`: two maps built separately become one (paper, "Map Management":
+// `rasterslam map merge` and `map prune`. Merge: two maps built separately become one (paper, "Map Management":
 // sessions that land in one map). The loaded map stays where it is; the other is located in
 // it local map by local map, and only a transform that several of them agree on is used.
 #include <rasterslam/core/engine.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <tuple>
 #include <set>
 #include <stdexcept>
 
@@ -139,6 +140,47 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		loopDetector_->index(*mapManager_->map().data(fin.localMap), fin.imageDescriptors);
 	rep.sessions = mapManager_->map().sessions;
 	rep.keyframes = mapManager_->map().keyframes.size();
+	return rep;
+}
+
+PruneReport Engine::pruneMap(const PruneOptions& opts)
+{
+	if (!mapManager_) throw ConfigError(source_ + ": pruning a map needs a map_manager");
+	const Map& map = mapManager_->map();
+	PruneReport rep;
+	rep.localMaps = map.localMaps.size();
+	// Newest first: a later session, then a later update.
+	std::vector<uint64_t> ids;
+	for (const auto& [id, lm] : map.localMaps) ids.push_back(id);
+	std::sort(ids.begin(), ids.end(), [&](uint64_t a, uint64_t b) {
+		const auto &x = *map.localMaps.at(a), &y = *map.localMaps.at(b);
+		return std::tie(x.session, x.updatedStamp, x.id) > std::tie(y.session, y.updatedStamp, y.id);
+	});
+	// A place: local maps whose anchors lie within place_radius_m of each other. Going from
+	// the newest, a local map is surplus where `keepPerPlace` kept ones are that near already.
+	std::vector<std::pair<uint64_t, mrpt::poses::CPose3D>> kept;
+	std::set<uint64_t> drop;
+	for (const auto id : ids)
+	{
+		const auto& lm = *map.localMaps.at(id);
+		const auto at = map.priorPoses.at(lm.anchor());
+		std::size_t near = 0;
+		for (const auto& [k, p] : kept) near += p.distanceTo(at) < opts.placeRadius_m;
+		if (near == 0) ++rep.places;
+		const bool old = opts.before && lm.updatedStamp < *opts.before;
+		const bool surplus = opts.keepPerPlace && near >= *opts.keepPerPlace;
+		const bool eligible = !map.onlineWhenSaved.count(id) && (opts.before || opts.keepPerPlace);
+		if (eligible && (old || !opts.before) && (surplus || !opts.keepPerPlace)) drop.insert(id);
+		else
+			kept.emplace_back(id, at);
+	}
+	if (!drop.empty() && drop.size() == map.localMaps.size())
+		throw std::runtime_error("every local map of the map would be dropped: nothing is changed");
+	rep.dropped.assign(drop.begin(), drop.end());
+	if (opts.dryRun || drop.empty()) return rep;
+	for (const auto id : drop)
+		if (loopDetector_) loopDetector_->forget(id);
+	rep.keyframesDropped = mapManager_->removeLocalMaps(drop);
 	return rep;
 }
 
