@@ -7,7 +7,14 @@
 #include <rasterslam/map/map.h>
 #include <rasterslam/map/local_map_store.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
 #include <fstream>
+#include <set>
+#include <thread>
 #include <random>
 
 #include "test_support.h"
@@ -156,6 +163,7 @@ TEST(MapModel, MapFileRoundTrip)
 	m.graph.add(0, 1, LocalMapGraph::EdgeKind::Sequential, 104);
 	m.placeIndexClass = "some::Index";
 	m.placeIndex = {1, 2, 3, 4, 5};
+	m.sessionRecords[2] = {2, 1.7e9, "2026-11-29T10:00:00Z", "VELODYNE", "/data/drive 2.rawlog"};
 	EXPECT_EQ(m.nextKeyframeId(), 9u);
 	EXPECT_EQ(m.nextLocalMapId(), 2u);
 	EXPECT_EQ(m.localMapsOf(4), (std::vector<uint64_t>{0, 1}));
@@ -174,6 +182,8 @@ TEST(MapModel, MapFileRoundTrip)
 	EXPECT_TRUE(back.graph == m.graph);
 	EXPECT_EQ(back.placeIndexClass, "some::Index");
 	EXPECT_EQ(back.placeIndex, m.placeIndex);
+	EXPECT_EQ(back.sessionRecords, m.sessionRecords);
+	EXPECT_EQ(back.onlineWhenSaved, (std::set<uint64_t>{0, 1}));
 	// Poses were taken from the view at saving time and come back as the prior map's.
 	for (const auto& [k, p] : live)
 	{
@@ -189,6 +199,83 @@ TEST(MapModel, MapFileRoundTrip)
 	live.erase(8);
 	EXPECT_THROW(saveMap(m, v, dir.path().string()), std::runtime_error);
 	EXPECT_EQ(loadMap(dir.path().string()).keyframes.size(), 9u);
+}
+
+TEST(MapModel, ASaveKilledMidwayLeavesThePreviousMapLoadable)
+{
+	const test::ScopedTempDir dir("map");
+	std::mt19937 rng(5);
+	// The previous map: 2 local maps. The new one: 60 local maps of 50 points and 241 keyframes with features (a save of a
+	// few hundred ms), killed at seeded moments along the way.
+	auto makeMap = [&](std::size_t localMaps) {
+		Map m;
+		m.sessions = 3;
+		for (uint64_t k = 0; k <= 4 * localMaps; k++)
+		{
+			auto kf = std::make_shared<Keyframe>();
+			kf->id = k;
+			kf->stamp = static_cast<double>(k);
+			// Features make the file big enough to be caught in the middle.
+			const std::size_t n = 1500;
+			kf->u.assign(n, 1.f);
+			kf->v.assign(n, 2.f);
+			kf->angle.assign(n, 0.f);
+			kf->response.assign(n, 1.f);
+			kf->octave.assign(n, 0);
+			kf->xyz.assign(3 * n, 0.5f);
+			kf->descriptors.resize(32 * n);
+			for (auto& b : kf->descriptors) b = static_cast<uint8_t>(rng());
+			m.keyframes[k] = kf;
+			m.priorPoses[k] = mrpt::poses::CPose3D(static_cast<double>(k), 0, 0, 0, 0, 0);
+		}
+		for (uint64_t i = 0; i < localMaps; i++) m.localMaps[i] = makeLocalMap(i, {4 * i, 4 * i + 1, 4 * i + 4}, rng);
+		return m;
+	};
+	const Map before = makeMap(2), after = makeMap(60);
+	PoseView pb, pa;
+	pb.prior = &before.priorPoses;
+	pa.prior = &after.priorPoses;
+	saveMap(before, pb, dir.path().string());
+	const auto t0 = std::chrono::steady_clock::now();
+	saveMap(after, pa, dir.path().string());
+	const double saveMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	saveMap(before, pb, dir.path().string());
+
+	std::uniform_real_distribution<double> when(0.0, 2.5);
+	std::size_t sawOld = 0, sawNew = 0;
+	for (int trial = 0; trial < 8; trial++)
+	{
+		const pid_t child = ::fork();
+		ASSERT_GE(child, 0);
+		if (child == 0)
+		{
+			try
+			{
+				saveMap(after, pa, dir.path().string());
+			}
+			catch (...)
+			{
+				::_exit(3);
+			}
+			::_exit(0);
+		}
+		std::this_thread::sleep_for(std::chrono::microseconds(static_cast<int64_t>(1000 * saveMs * when(rng))));
+		::kill(child, SIGKILL);
+		int status = 0;
+		::waitpid(child, &status, 0);
+		// Whatever the moment: a whole map, the old or the new one.
+		const Map m = loadMap(dir.path().string());
+		ASSERT_TRUE(m.localMaps.size() == 2 || m.localMaps.size() == 60) << m.localMaps.size();
+		(m.localMaps.size() == 2 ? sawOld : sawNew)++;
+		if (m.localMaps.size() == 60) saveMap(before, pb, dir.path().string());
+	}
+	// Both outcomes happened (the kill times span the save), and the next save cleared what
+	// the killed ones left.
+	EXPECT_GT(sawOld, 0u);
+	saveMap(before, pb, dir.path().string());
+	for (const auto& e : fs::directory_iterator(dir.path()))
+		EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+	std::printf("save %.0f ms; killed saves left the old map %zu times, the new one %zu times\n", saveMs, sawOld, sawNew);
 }
 
 TEST(MapModel, DamagedAndOldMapsAreRefused)

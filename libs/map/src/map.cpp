@@ -3,7 +3,10 @@
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/stl_serialization.h>
 #include <rasterslam/map/map.h>
+#include <signal.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <filesystem>
 #include <fstream>
@@ -83,10 +86,32 @@ std::size_t Map::memoryBytes() const
 
 std::string mapFilePath(const std::string& dir) { return (fs::path(dir) / "map.rsmap").string(); }
 
+namespace
+{
+/** Temporary files an interrupted save left behind (their process is gone): a killed save
+ *  must not leave them to fill the disk. */
+void removeStaleTemporaries(const std::string& dir)
+{
+	std::error_code ec;
+	for (const auto& e : fs::directory_iterator(dir, ec))
+	{
+		const auto name = e.path().filename().string();
+		const auto at = name.rfind(".tmp-");
+		if (at == std::string::npos) continue;
+		if (name.rfind("map.rsmap.tmp-", 0) != 0 && name.rfind(".localmaps.tmp-", 0) != 0) continue;
+		const std::string pid = name.substr(at + 5);
+		if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos || pid.size() > 9) continue;
+		const auto p = static_cast<pid_t>(std::stol(pid));
+		if (p == ::getpid() || (::kill(p, 0) != 0 && errno == ESRCH)) fs::remove_all(e.path(), ec);
+	}
+}
+}  // namespace
+
 void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 {
 	if (map.localMaps.empty()) throw std::runtime_error("the map has no local map: there is nothing to save");
 	fs::create_directories(dir);
+	removeStaleTemporaries(dir);
 	const auto path = mapFilePath(dir);
 	const auto tmp = path + ".tmp-" + std::to_string(::getpid());
 	try
