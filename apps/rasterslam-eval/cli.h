@@ -134,5 +134,6 @@ inline std::string jsonString(const std::string& s)
 int runTraj(int argc, char** argv);
 int runLoops(int argc, char** argv);
 int runLocalMaps(int argc, char** argv);
+int runTimings(int argc, char** argv);
 
 }  // namespace rasterslam_eval_cli

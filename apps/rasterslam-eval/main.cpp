@@ -1,4 +1,5 @@
-// rasterslam-eval: accuracy metrics of SLAM outputs. Subcommands: traj, loops.
+// rasterslam-eval: accuracy and cost metrics of SLAM outputs. Subcommands: traj, loops,
+// localmaps, timings.
 #include "cli.h"
 
 using namespace rasterslam_eval_cli;
@@ -21,6 +22,8 @@ const std::vector<Command>& commands()
 	     runLoops},
 	    {"localmaps", "relative errors between the keyframes of each local map of a saved map",
 	     runLocalMaps},
+	    {"timings", "cost per scan and memory of runs from their timings.csv, and a plot",
+	     runTimings},
 	};
 	return cmds;
 }

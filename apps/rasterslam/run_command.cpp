@@ -1,4 +1,5 @@
 // `rasterslam run`: play a rawlog through the configured pipeline and write the outputs.
+#include <malloc.h>
 #include <mrpt/core/format.h>
 #include <mrpt/system/os.h>
 #include <rasterslam/core/config.h>
@@ -118,6 +119,11 @@ std::string findConfig(const std::string& name)
 
 int runCommand(int argc, char** argv)
 {
+	// Scans are a few MB each: with a fixed threshold they are always mapped and unmapped
+	// whole. glibc's default raises the threshold after the first free and then keeps such
+	// blocks in the heap, where they come and go with the scans and resident memory jumps
+	// by tens of MB at random moments of a long run.
+	::mallopt(M_MMAP_THRESHOLD, 1 << 20);
 	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
 	RunOptions opts;
 	bool quiet = false, verbose = false, saveImages = false, overwrite = false, requireLocalization = false;
@@ -313,6 +319,9 @@ int runCommand(int argc, char** argv)
 	summary["odometry_ms_median"] = percentile(odo, 0.5);
 	summary["peak_rss_mb"] = peakRssMb();
 	summary["online_optimization_ms_total"] = res.onlineOptimization_ms;
+	summary["local_maps_replaced"] = res.localMapsReplaced;
+	summary["online_optimization_nodes_mean"] =
+		res.onlineOptimizations ? static_cast<double>(res.onlineOptimizationNodes) / res.onlineOptimizations : 0.0;
 	yaml cpu = yaml::Map();
 	cpu["tracking_s"] = res.cpuTracking_s;
 	cpu["mapping_and_loop_closing_s"] = res.cpuBackend_s;

@@ -1,5 +1,7 @@
 #include "backend.h"
 
+#include <malloc.h>
+
 #include <chrono>
 #include <ctime>
 
@@ -181,20 +183,65 @@ void Backend::applyMapping(const MappingUpdate& up)
 		}
 		if (loopDetector_) loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
 	}
+	if (loopDetector_)
+		for (const auto id : up.replaced)
+			if (loopDetector_->forget(id))
+			{
+				std::lock_guard<std::mutex> lk(graphMutex_);
+				++res_.localMapsReplaced;
+			}
 }
 
 void Backend::optimizeNow()
 {
-	// The optimizer works on a copy, so the tracking can add keyframes meanwhile.
+	// Keyframes that only offline local maps hold: the map they belong to has been set aside
+	// (culled, or replaced on a revisit), and they anchor what is optimized now. Caller holds
+	// mapMutex_.
+	std::set<mrpt::graphs::TNodeID> still;
+	if (s_.optimizeOnlineWindow && mapManager_)
+	{
+		std::set<uint64_t> online;
+		for (const auto& [id, lm] : mapManager_->map().localMaps)
+			(lm->online ? online : still).insert(lm->keyframes.begin(), lm->keyframes.end());
+		for (const auto k : online) still.erase(k);
+	}
+	// The optimizer works on a copy (of the window), so the tracking can add keyframes
+	// meanwhile.
 	mrpt::graphs::CNetworkOfPoses3DInf g;
 	EdgeSet uncertain;
 	std::set<mrpt::graphs::TNodeID> fixed;
 	{
 		std::lock_guard<std::mutex> lk(graphMutex_);
-		g = res_.graph;
-		uncertain = res_.uncertainEdges;
-		fixed = fixed_;
+		if (still.empty())
+		{
+			g = res_.graph;
+			uncertain = res_.uncertainEdges;
+			fixed = fixed_;
+		}
+		else
+		{
+			auto moves = [&](mrpt::graphs::TNodeID id) { return !still.count(id) && !fixed_.count(id); };
+			for (const auto& [id, p] : res_.graph.nodes)
+				if (moves(id)) g.nodes[id] = p;
+			// Edges with a moving end; their other end joins the window, fixed.
+			for (const auto& [ends, e] : res_.graph.edges)
+			{
+				const bool a = moves(ends.first), b = moves(ends.second);
+				if (!a && !b) continue;
+				for (const auto id : {ends.first, ends.second})
+					if (!moves(id) && res_.graph.nodes.count(id))
+					{
+						g.nodes[id] = res_.graph.nodes.at(id);
+						fixed.insert(id);
+					}
+				g.insertEdge(ends.first, ends.second, e);
+				if (res_.uncertainEdges.count(ends)) uncertain.insert(ends);
+			}
+			g.root = fixed.empty() ? res_.graph.root : *fixed.begin();
+			if (!g.nodes.count(g.root)) g.root = g.nodes.empty() ? 0 : g.nodes.begin()->first;
+		}
 	}
+	if (g.nodes.empty()) return;
 	const auto r = optimizer_->optimize(g, uncertain, fixed);
 	std::lock_guard<std::mutex> lk(graphMutex_);
 	std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D> updated;
@@ -203,6 +250,7 @@ void Backend::optimizeNow()
 	writePoses(updated);
 	++res_.onlineOptimizations;
 	res_.onlineOptimization_ms += r.time_ms;
+	res_.onlineOptimizationNodes += g.nodes.size();
 }
 
 void Backend::process(KeyframeJob& job)
@@ -266,6 +314,14 @@ void Backend::process(KeyframeJob& job)
 		t.loop = msSince(t0);
 	}
 	times_.emplace_back(job.record, t);
+	// Freed heap pages (local maps stored offline, optimizer workspaces, loaded candidates)
+	// go back to the system now and then: in a run of hours, glibc otherwise keeps them in
+	// this thread's arena and resident memory creeps up.
+	if (++kfSinceTrim_ >= 50)
+	{
+		kfSinceTrim_ = 0;
+		::malloc_trim(0);
+	}
 }
 
 }  // namespace rasterslam::detail

@@ -29,6 +29,10 @@ struct BackendSettings
 {
 	bool optimizeOnline = true;
 	int optimizeEveryKeyframes = 10;
+	/** Online optimizations move only the keyframes of online local maps (and those not
+	 *  mapped yet); keyframes whose local maps all went offline hold still, so the cost
+	 *  follows the online map, not the whole run. False: the whole graph every time. */
+	bool optimizeOnlineWindow = true;
 	double testCorruptLoops = 0;
 };
 
@@ -78,6 +82,7 @@ class Backend
 	 *  went on meanwhile) move with it. Caller holds graphMutex_. */
 	void writePoses(const std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D>& updated);
 	void workerLoop();
+	std::size_t kfSinceTrim_ = 0;
 
 	MapManager* mapManager_;
 	LoopDetector* loopDetector_;

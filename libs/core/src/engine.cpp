@@ -148,6 +148,9 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		rawlogOdoSigma_deg_ = p.getDouble("rawlog_odometry_sigma_deg", rawlogOdoSigma_deg_);
 		optimizeOnline_ = p.getBool("optimize_online", optimizeOnline_);
 		optimizeEveryKeyframes_ = p.getInt("optimize_every_keyframes", optimizeEveryKeyframes_);
+		optimizeOnlineWindow_ =
+			p.getChoice("optimize_online_window", optimizeOnlineWindow_ ? "online_maps" : "all", {"online_maps", "all"}) ==
+			"online_maps";
 		testCorruptLoops_ = p.getDouble("test_corrupt_loops", testCorruptLoops_);
 		anchorMinAgreeing_ = p.getInt("anchor_min_agreeing", anchorMinAgreeing_);
 		anchorAgree_m_ = p.getDouble("anchor_agree_m", anchorAgree_m_);
@@ -256,6 +259,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	detail::BackendSettings bs;
 	bs.optimizeOnline = optimizeOnline_;
 	bs.optimizeEveryKeyframes = optimizeEveryKeyframes_;
+	bs.optimizeOnlineWindow = optimizeOnlineWindow_;
 	bs.testCorruptLoops = testCorruptLoops_;
 	detail::Backend backend(
 		mapManager_.get(), loopDetector_.get(), optimizer_.get(), bs, res, *this, !opts.realtime);

@@ -289,17 +289,19 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	return out;
 }
 
-void BowLoopDetector::forget(uint64_t localMap)
+bool BowLoopDetector::forget(uint64_t localMap)
 {
+	bool found = false;
 	for (auto it = entryMap_.begin(); it != entryMap_.end();)
 		if (it->second == localMap)
 		{
 			db_.remove(it->first);
 			it = entryMap_.erase(it);
+			found = true;
 		}
 		else
 			++it;
-	trainingImages_.erase(localMap);
+	return trainingImages_.erase(localMap) > 0 || found;
 }
 
 std::vector<uint8_t> BowLoopDetector::savePlaceIndex()

@@ -34,7 +34,7 @@ class BowLoopDetector : public LoopDetector
 		const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses) override;
 	RelocalizationResult locate(
 		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe) override;
-	void forget(uint64_t localMap) override;
+	bool forget(uint64_t localMap) override;
 	std::vector<uint8_t> savePlaceIndex() override;
 	void loadPlaceIndex(const Map& map) override;
 

@@ -65,6 +65,7 @@ class LocalMapManager : public MapManager
 	features::OrbParams mapOrb_;
 	double cullDistance_m_ = 300;
 	bool cullOnLoop_ = true;
+	bool indexReplaced_ = false;  //!< local maps replaced on a revisit keep their place-index entry
 	int maxOnlineMaps_ = 64;
 	std::string offlineDir_;
 	bool ownOfflineDir_ = false;  //!< a temporary folder of this run, removed at the end
@@ -117,6 +118,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	mapOrb_.levels = 3;
 	cullDistance_m_ = p.getDouble("cull_distance_m", cullDistance_m_);
 	cullOnLoop_ = p.getBool("cull_on_loop", cullOnLoop_);
+	indexReplaced_ = p.getBool("index_replaced", indexReplaced_);
 	maxOnlineMaps_ = p.getInt("max_online_maps", maxOnlineMaps_);
 	offlineDir_ = p.getString("offline_dir", "");
 	if (cullDistance_m_ < 0) throw ConfigError(p.context() + ".cull_distance_m: must be >= 0 (0: never)");
@@ -270,9 +272,10 @@ void LocalMapManager::loopAccepted(uint64_t fromKf, uint64_t /*toKf*/, double /*
 	// The query keyframe is in the open local map: the edge is made when that map is done.
 	const auto maps = map_.localMapsOf(fromKf);
 	if (maps.empty()) return;
-	pendingLoops_.push_back(maps.front());
+	if (std::find(pendingLoops_.begin(), pendingLoops_.end(), maps.front()) == pendingLoops_.end())
+		pendingLoops_.push_back(maps.front());
 	// Paper, "Map Update": the revisited place gets a new local map from the current scans
-	// (the open one); the older one leaves the online graph, its database entry kept.
+	// (the open one); the older one leaves the online graph for the offline store.
 	if (cullOnLoop_)
 		for (const auto m : maps)
 			if (map_.localMaps.at(m)->online && routeAt_.count(m))
@@ -391,7 +394,15 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	if (lastLocalMap_)
 		map_.graph.add(*lastLocalMap_, lm->id, LocalMapGraph::EdgeKind::Sequential, lm->createdStamp);
 	for (const auto other : pendingLoops_)
+	{
 		map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Loop, lm->updatedStamp);
+		// The place now has a newer local map: the older one's place-index entry goes (also
+		// when it went offline earlier, by distance), unless every version is to stay
+		// searchable. One entry a place keeps the database and the query time flat on a route
+		// driven again and again; the older image stays in the store, so its entry can be made
+		// again.
+		if (cullOnLoop_ && !indexReplaced_ && !map_.localMaps.at(other)->online) up.replaced.push_back(other);
+	}
 	pendingLoops_.clear();
 	map_.localMaps[lm->id] = lm;
 	routeAt_[lm->id] = route_m_;

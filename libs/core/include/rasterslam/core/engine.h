@@ -71,8 +71,10 @@ struct RunResult
 	std::size_t anchorHits = 0;
 	std::size_t localMaps = 0;  //!< local maps finished in this run
 	std::size_t localBaRuns = 0;  //!< local maps refined by local BA
+	std::size_t localMapsReplaced = 0;  //!< replaced on a revisit, their place-index entry dropped
 	std::size_t onlineOptimizations = 0;  //!< pose-graph optimizations during the run
 	double onlineOptimization_ms = 0;  //!< their total time
+	std::size_t onlineOptimizationNodes = 0;  //!< nodes they had, summed (moving and fixed)
 	std::size_t corruptedLoops = 0;  //!< loop edges replaced by wrong ones (engine.test_corrupt_loops)
 	/** Edges that may be outliers (loop, relocalization), for the robust loss. */
 	EdgeSet uncertainEdges;
@@ -184,6 +186,7 @@ class Engine : public mrpt::system::COutputLogger
 	double rawlogOdoSigma_m_ = 0.05, rawlogOdoSigma_deg_ = 0.5;
 	bool optimizeOnline_ = true;
 	int optimizeEveryKeyframes_ = 10;
+	bool optimizeOnlineWindow_ = true;
 	double testCorruptLoops_ = 0;
 	int anchorMinAgreeing_ = 3;
 	double anchorAgree_m_ = 1.0, anchorAgree_deg_ = 3.0;

@@ -124,6 +124,9 @@ struct MappingUpdate
 		std::vector<uint8_t> imageDescriptors;
 	};
 	std::vector<Finished> finished;
+	/** Local maps the finished one replaced (update on revisit): they leave the place index,
+	 *  the new local map indexes their place. */
+	std::vector<uint64_t> replaced;
 	/** Local BA's refined poses of the finished map's keyframes in its anchor's frame (the
 	 *  anchor itself not listed). The engine writes them into the pose graph. */
 	uint64_t anchor = 0;
@@ -241,8 +244,9 @@ class LoopDetector : public Plugin
 		(void)query, (void)map, (void)poses, (void)onlyKeyframe;
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot locate local maps");
 	}
-	/** A local map leaves the map (`map prune`): its place-index entry goes. */
-	virtual void forget(uint64_t /*localMap*/) {}
+	/** A local map leaves the place index (pruned, or replaced on a revisit). Returns
+	 *  whether it was there. */
+	virtual bool forget(uint64_t /*localMap*/) { return false; }
 	/** The place index as bytes to save with the map, and the class name that reads them. */
 	virtual std::vector<uint8_t> savePlaceIndex() = 0;
 	/** Restores a place index saved with `map` (after the map manager loaded it). */
