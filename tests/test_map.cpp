@@ -178,7 +178,12 @@ TEST(MapModel, MapFileRoundTrip)
 	EXPECT_EQ(back.sessions, 3u);
 	ASSERT_EQ(back.keyframes.size(), 9u);
 	ASSERT_EQ(back.localMaps.size(), 2u);
-	EXPECT_TRUE(*back.localMaps.at(1) == *m.localMaps.at(1));
+	// Labels in memory, points and image read from the map's store when needed.
+	EXPECT_FALSE(back.localMaps.at(1)->hasData());
+	EXPECT_FALSE(back.localMaps.at(1)->online);
+	EXPECT_EQ(back.localMaps.at(1)->keyframes, m.localMaps.at(1)->keyframes);
+	EXPECT_EQ(back.saved.at(1).points, 50u);
+	EXPECT_TRUE(*back.data(1) == *m.localMaps.at(1));
 	EXPECT_TRUE(back.graph == m.graph);
 	EXPECT_EQ(back.placeIndexClass, "some::Index");
 	EXPECT_EQ(back.placeIndex, m.placeIndex);
@@ -192,8 +197,28 @@ TEST(MapModel, MapFileRoundTrip)
 		EXPECT_EQ(back.keyframes.at(k)->session, m.keyframes.at(k)->session);
 	}
 	// No stray temporary files.
-	for (const auto& e : fs::directory_iterator(dir.path()))
+	for (const auto& e : fs::recursive_directory_iterator(dir.path()))
 		EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+
+	// Saved over itself, a loaded map writes no local map again; one it no longer has leaves
+	// the store.
+	auto storeFiles = [&] {
+		std::set<std::string> names;
+		for (const auto& e : fs::directory_iterator(dir / "store")) names.insert(e.path().filename().string());
+		return names;
+	};
+	const auto files = storeFiles();
+	ASSERT_EQ(files.size(), 2u);
+	Map again = loadMap(dir.path().string());
+	PoseView pv;
+	pv.prior = &again.priorPoses;
+	saveMap(again, pv, dir.path().string());
+	EXPECT_EQ(storeFiles(), files);
+	again.localMaps.erase(1);
+	saveMap(again, pv, dir.path().string());
+	EXPECT_EQ(storeFiles().size(), 1u);
+	EXPECT_FALSE(fs::exists(dir / "localmaps/0001.png"));
+	saveMap(m, v, dir.path().string());
 
 	// A keyframe without a pose cannot be saved, and the previous map stays loadable.
 	live.erase(8);
@@ -266,6 +291,7 @@ TEST(MapModel, ASaveKilledMidwayLeavesThePreviousMapLoadable)
 		// Whatever the moment: a whole map, the old or the new one.
 		const Map m = loadMap(dir.path().string());
 		ASSERT_TRUE(m.localMaps.size() == 2 || m.localMaps.size() == 60) << m.localMaps.size();
+		for (const auto& [id, lm] : m.localMaps) EXPECT_EQ(m.data(id)->points(), 50u) << id;
 		(m.localMaps.size() == 2 ? sawOld : sawNew)++;
 		if (m.localMaps.size() == 60) saveMap(before, pb, dir.path().string());
 	}
@@ -383,6 +409,7 @@ TEST(MapModel, OfflineStoreRoundTripChecksumAndOnDemandLoading)
 	v.prior = &poses;
 	saveMap(m, v, (dir / "map").string());
 	const Map back2 = loadMap((dir / "map").string());
-	EXPECT_TRUE(*back2.localMaps.at(12) == *lm);
 	EXPECT_FALSE(back2.localMaps.at(12)->online);
+	EXPECT_FALSE(back2.localMaps.at(12)->hasData());  // labels only, until needed
+	EXPECT_TRUE(*back2.data(12) == *lm);
 }

@@ -1,4 +1,8 @@
 // rasterslam-eval traj: ATE, RPE and the KITTI devkit relative errors.
+#include <mrpt/core/format.h>
+
+#include <optional>
+
 #include "cli.h"
 
 namespace rasterslam_eval_cli
@@ -24,6 +28,9 @@ Options:
   --gt-format F         auto|tum|kitti (default auto); --est-format F likewise
   --times FILE          KITTI times.txt: stamps for the KITTI-format file(s)
   --associate M         auto|index|stamp (default auto)
+  --align A             se3: fit the estimate to the ground truth (default); or a given
+                        T_gt_est as x,y,z,qx,qy,qz,qw (what --json prints as T_gt_est), e.g.
+                        another session's alignment, to judge sessions of one map in one frame
   --max-dt S            largest stamp difference when associating by time (default 0.02)
   --segments SPEC       segment lengths in metres, start:end:step or a list
                         (default 100:800:100; use 10:80:10 for short clips)
@@ -83,7 +90,7 @@ int runTraj(int argc, char** argv)
 {
 	const Options o(argc, argv,
 	                {"--gt", "--est", "--calib", "--est-calib", "--gt-format", "--est-format",
-	                 "--times", "--associate", "--max-dt", "--segments", "--step"},
+	                 "--times", "--associate", "--max-dt", "--segments", "--step", "--align"},
 	                {"--json", "--help", "-h"});
 	if (o.flag("--help") || o.flag("-h"))
 	{
@@ -115,6 +122,31 @@ int runTraj(int argc, char** argv)
 		throw UsageError("option --associate: expected auto, index or stamp, got '" + assocMode +
 		                 "'");
 
+	// --align se3 (fit) or x,y,z,qx,qy,qz,qw: a given T_gt_est (as --json prints it).
+	std::optional<Eigen::Isometry3d> fixedAlign;
+	if (const std::string al = o.get("--align", "se3"); al != "se3")
+	{
+		std::vector<double> v;
+		std::stringstream ss(al);
+		std::string item;
+		while (std::getline(ss, item, ','))
+		{
+			char* end = nullptr;
+			const double x = std::strtod(item.c_str(), &end);
+			if (item.empty() || *end || !std::isfinite(x))
+				throw UsageError("option --align: expected se3 or x,y,z,qx,qy,qz,qw, got '" + al + "'");
+			v.push_back(x);
+		}
+		const Eigen::Quaterniond q(v.size() == 7 ? v[6] : 0, v.size() == 7 ? v[3] : 0, v.size() == 7 ? v[4] : 0,
+		                           v.size() == 7 ? v[5] : 0);
+		if (v.size() != 7 || std::abs(q.norm() - 1) > 1e-3)
+			throw UsageError("option --align: expected se3 or x,y,z,qx,qy,qz,qw with a unit quaternion, got '" +
+			                 al + "'");
+		fixedAlign = Eigen::Isometry3d::Identity();
+		fixedAlign->linear() = q.normalized().toRotationMatrix();
+		fixedAlign->translation() = Eigen::Vector3d(v[0], v[1], v[2]);
+	}
+
 	const Input gt = loadInput(o, "--gt", "--gt-format", "--calib");
 	const Input est = loadInput(o, "--est", "--est-format", "--est-calib");
 
@@ -128,7 +160,9 @@ int runTraj(int argc, char** argv)
 		                         (byStamp ? " (check the stamps or --max-dt)" : ""));
 	}
 
-	const eval::AteResult ate = eval::computeAte(gt.traj, est.traj, a);
+	const eval::AteResult ate = eval::computeAte(gt.traj, est.traj, a, fixedAlign);
+	const Eigen::Quaterniond alignQ(ate.T_gt_est.linear());
+	const Eigen::Vector3d alignT = ate.T_gt_est.translation();
 	const eval::RpeResult rpe = eval::computeRpe(gt.traj, est.traj, a);
 	const eval::KittiRelativeResult rel =
 	    eval::computeKittiRelative(gt.traj, est.traj, a, lengths, step);
@@ -155,7 +189,11 @@ int runTraj(int argc, char** argv)
 		  << ", \"ate_rmse_m\": " << jsonNumber(ate.rmse_m)
 		  << ", \"ate_mean_m\": " << jsonNumber(ate.mean_m)
 		  << ", \"ate_median_m\": " << jsonNumber(ate.median_m)
-		  << ", \"ate_max_m\": " << jsonNumber(ate.max_m) << ", \"rpe_pairs\": " << rpe.n
+		  << ", \"ate_max_m\": " << jsonNumber(ate.max_m) << ", \"ate_alignment\": \""
+		  << (fixedAlign ? "given" : "se3") << "\", \"T_gt_est\": \""
+		  << mrpt::format("%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g", alignT.x(), alignT.y(), alignT.z(),
+		                  alignQ.x(), alignQ.y(), alignQ.z(), alignQ.w())
+		  << "\", \"rpe_pairs\": " << rpe.n
 		  << ", \"rpe_trans_rmse_m\": " << jsonNumber(rpe.trans_rmse_m)
 		  << ", \"rpe_trans_mean_m\": " << jsonNumber(rpe.trans_mean_m)
 		  << ", \"rpe_rot_rmse_deg\": " << jsonNumber(rpe.rot_rmse_deg)
@@ -193,8 +231,8 @@ int runTraj(int argc, char** argv)
 	std::snprintf(buf, sizeof(buf), "path length  : %.2f m (ground truth)\n", pathLength);
 	std::cout << buf;
 	std::snprintf(buf, sizeof(buf),
-	              "ATE (SE(3)-aligned): rmse %.4f m, mean %.4f m, median %.4f m, max %.4f m\n",
-	              ate.rmse_m, ate.mean_m, ate.median_m, ate.max_m);
+	              "ATE (%s): rmse %.4f m, mean %.4f m, median %.4f m, max %.4f m\n",
+	              fixedAlign ? "given alignment" : "SE(3)-aligned", ate.rmse_m, ate.mean_m, ate.median_m, ate.max_m);
 	std::cout << buf;
 	std::snprintf(
 	    buf, sizeof(buf),

@@ -79,12 +79,16 @@ int mapInfo(const std::string& dir)
 	for (const auto& [id, lm] : map.localMaps)
 	{
 		auto& s = sessions[lm->session];
+		const bool on = map.onlineWhenSaved.count(id) > 0;
 		++s.localMaps;
-		s.online += lm->online;
-		online += lm->online;
-		points += lm->points();
-		pngBytes += lm->imagePng.size();
+		s.online += on;
+		online += on;
+		const auto e = map.saved.find(id);
+		points += e != map.saved.end() ? e->second.points : lm->points();
 	}
+	std::error_code ec2;
+	for (const auto& e : fs::directory_iterator(fs::path(dir) / "localmaps", ec2))
+		if (e.path().extension() == ".png") pngBytes += e.file_size(ec2);
 	std::printf("map          : %s (%.2f MB on disk)\n", fs::path(dir).lexically_normal().c_str(), disk / 1e6);
 	std::printf("sessions     : %u\n", map.sessions);
 	std::printf("keyframes    : %zu\n", map.keyframes.size());

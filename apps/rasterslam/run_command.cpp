@@ -1,5 +1,4 @@
 // `rasterslam run`: play a rawlog through the configured pipeline and write the outputs.
-#include <malloc.h>
 #include <mrpt/core/format.h>
 #include <mrpt/system/os.h>
 #include <rasterslam/core/config.h>
@@ -119,11 +118,6 @@ std::string findConfig(const std::string& name)
 
 int runCommand(int argc, char** argv)
 {
-	// Scans are a few MB each: with a fixed threshold they are always mapped and unmapped
-	// whole. glibc's default raises the threshold after the first free and then keeps such
-	// blocks in the heap, where they come and go with the scans and resident memory jumps
-	// by tens of MB at random moments of a long run.
-	::mallopt(M_MMAP_THRESHOLD, 1 << 20);
 	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
 	RunOptions opts;
 	bool quiet = false, verbose = false, saveImages = false, overwrite = false, requireLocalization = false;

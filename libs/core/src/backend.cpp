@@ -184,12 +184,12 @@ void Backend::applyMapping(const MappingUpdate& up)
 		if (loopDetector_) loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
 	}
 	if (loopDetector_)
-		for (const auto id : up.replaced)
-			if (loopDetector_->forget(id))
-			{
-				std::lock_guard<std::mutex> lk(graphMutex_);
-				++res_.localMapsReplaced;
-			}
+		for (const auto& [older, newer] : up.replaced)
+		{
+			loopDetector_->replaced(older, *mapManager_->map().localMaps.at(newer));
+			std::lock_guard<std::mutex> lk(graphMutex_);
+			++res_.localMapsReplaced;
+		}
 }
 
 void Backend::optimizeNow()

@@ -138,7 +138,8 @@ Association associate(const Trajectory& gt, const Trajectory& est, bool byIndex,
 	return a;
 }
 
-AteResult computeAte(const Trajectory& gt, const Trajectory& est, const Association& a)
+AteResult computeAte(
+	const Trajectory& gt, const Trajectory& est, const Association& a, const std::optional<Eigen::Isometry3d>& fixed)
 {
 	checkAssociation(gt, est, a);
 	AteResult r;
@@ -152,7 +153,9 @@ AteResult computeAte(const Trajectory& gt, const Trajectory& est, const Associat
 		src.col(static_cast<Eigen::Index>(k)) = est[a.est[k]].pose.translation();
 		dst.col(static_cast<Eigen::Index>(k)) = gt[a.gt[k]].pose.translation();
 	}
-	if (r.n >= 3)
+	if (fixed)
+		r.T_gt_est = *fixed;
+	else if (r.n >= 3)
 	{
 		// Umeyama (1991), least-squares rigid fit without scale: a monocular-style scale fit
 		// would hide the scale drift that a LiDAR odometry must not have.

@@ -35,14 +35,28 @@ bool LocalMapStore::contains(uint64_t localMap) const
 	return fs::is_regular_file(pathOf(localMap), ec);
 }
 
-std::size_t LocalMapStore::save(const LocalMap& lm) const
+namespace
 {
-	mrpt::io::CMemoryStream payload;
-	mrpt::serialization::archiveFrom(payload) << lm;
-	const auto* bytes = static_cast<const uint8_t*>(payload.getRawBufferData());
-	const uint64_t n = payload.getTotalBytesCount();
-	const uint32_t crc = mrpt::system::compute_CRC32(bytes, n);
-	const auto path = pathOf(lm.id);
+struct Payload
+{
+	mrpt::io::CMemoryStream buf;
+	const uint8_t* bytes = nullptr;
+	uint64_t n = 0;
+	uint32_t crc = 0;
+	explicit Payload(const LocalMap& lm)
+	{
+		mrpt::serialization::archiveFrom(buf) << lm;
+		bytes = static_cast<const uint8_t*>(buf.getRawBufferData());
+		n = buf.getTotalBytesCount();
+		crc = mrpt::system::compute_CRC32(bytes, n);
+	}
+};
+
+/** Header and payload under a temporary name, then renamed onto `path`. */
+void writeFile(const std::string& path, const Payload& payload)
+{
+	const uint64_t n = payload.n;
+	const uint32_t crc = payload.crc;
 	const auto tmp = path + ".tmp-" + std::to_string(::getpid());
 	{
 		std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
@@ -51,7 +65,7 @@ std::size_t LocalMapStore::save(const LocalMap& lm) const
 		put(&kStoreVersion, 1);
 		put(&n, 8);
 		put(&crc, 4);
-		put(bytes, n);
+		put(payload.bytes, n);
 		f.flush();
 		if (!f)
 		{
@@ -61,12 +75,40 @@ std::size_t LocalMapStore::save(const LocalMap& lm) const
 		}
 	}
 	fs::rename(tmp, path);
-	return 17 + n;
+}
+}  // namespace
+
+std::size_t LocalMapStore::save(const LocalMap& lm) const
+{
+	const Payload p(lm);
+	writeFile(pathOf(lm.id), p);
+	return 17 + p.n;
 }
 
-LocalMap::Ptr LocalMapStore::load(uint64_t localMap) const
+LocalMapStore::Entry LocalMapStore::saveContent(const LocalMap& lm) const
 {
-	const auto path = pathOf(localMap);
+	const Payload p(lm);
+	Entry e;
+	e.file = mrpt::format("%06llu-%08x.rslm", static_cast<unsigned long long>(lm.id), p.crc);
+	e.points = lm.points();
+	e.bytes = 17 + p.n;
+	std::error_code ec;
+	const auto path = (fs::path(dir_) / e.file).string();
+	if (!(fs::is_regular_file(path, ec) && fs::file_size(path, ec) == e.bytes)) writeFile(path, p);
+	return e;
+}
+
+LocalMap::Ptr LocalMapStore::loadFile(const std::string& file, uint64_t localMap) const
+{
+	if (file.empty() || file.find('/') != std::string::npos || file.find("..") != std::string::npos)
+		throw std::runtime_error("local map " + std::to_string(localMap) + ": bad file name '" + file + "'");
+	return loadPath((fs::path(dir_) / file).string(), localMap);
+}
+
+LocalMap::Ptr LocalMapStore::load(uint64_t localMap) const { return loadPath(pathOf(localMap), localMap); }
+
+LocalMap::Ptr LocalMapStore::loadPath(const std::string& path, uint64_t localMap) const
+{
 	auto fail = [&](const std::string& what) { return std::runtime_error("cannot read local map '" + path + "': " + what); };
 	std::ifstream f(path, std::ios::binary);
 	if (!f) throw fail("no such file");

@@ -10,6 +10,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <stdexcept>
 
 namespace fs = std::filesystem;
@@ -21,8 +22,9 @@ namespace
 constexpr uint32_t kMapMagic = 0x504d5352;  // "RSMP"
 // Version 0 (the loop detector's own file, before the map model) is not read: its keyframe
 // grouping cannot be turned into local maps with points.
-// Version 1 has no session records.
-constexpr uint8_t kMapVersion = 2;
+// Version 1 has no session records; versions 1 and 2 hold every local map whole in the one
+// file; version 3 is an index, the local maps being files of the map's store.
+constexpr uint8_t kMapVersion = 3;
 }  // namespace
 
 std::optional<mrpt::poses::CPose3D> PoseView::operator()(uint64_t keyframe) const
@@ -51,8 +53,13 @@ LocalMap::ConstPtr Map::data(uint64_t localMap) const
 	std::lock_guard<std::mutex> lk(cache_.mutex);
 	for (const auto& c : cache_.maps)
 		if (c->id == localMap) return c;
-	if (!offline) throw std::runtime_error("local map " + std::to_string(localMap) + " is offline and there is no store");
-	LocalMap::ConstPtr loaded = offline->load(localMap);
+	LocalMap::ConstPtr loaded;
+	if (const auto it = saved.find(localMap); it != saved.end() && savedStore)
+		loaded = savedStore->loadFile(it->second.file, localMap);
+	else if (offline)
+		loaded = offline->load(localMap);
+	else
+		throw std::runtime_error("local map " + std::to_string(localMap) + " is offline and there is no store");
 	// A loop query verifies a handful of candidates: keep the last few, not the store.
 	cache_.maps.push_back(loaded);
 	if (cache_.maps.size() > 8) cache_.maps.pop_front();
@@ -98,7 +105,11 @@ void removeStaleTemporaries(const std::string& dir)
 		const auto name = e.path().filename().string();
 		const auto at = name.rfind(".tmp-");
 		if (at == std::string::npos) continue;
-		if (name.rfind("map.rsmap.tmp-", 0) != 0 && name.rfind(".localmaps.tmp-", 0) != 0) continue;
+		const auto stem = name.substr(0, at);
+		const auto ends = [&](const std::string& x) {
+			return stem.size() >= x.size() && stem.compare(stem.size() - x.size(), x.size(), x) == 0;
+		};
+		if (stem != "map.rsmap" && stem != ".localmaps" && !ends(".rslm") && !ends(".png")) continue;
 		const std::string pid = name.substr(at + 5);
 		if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos || pid.size() > 9) continue;
 		const auto p = static_cast<pid_t>(std::stol(pid));
@@ -112,6 +123,29 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 	if (map.localMaps.empty()) throw std::runtime_error("the map has no local map: there is nothing to save");
 	fs::create_directories(dir);
 	removeStaleTemporaries(dir);
+	const LocalMapStore store((fs::path(dir) / "store").string());
+	removeStaleTemporaries(store.dir());
+	std::error_code ec;
+	// Saving over the map it was loaded from: its local maps' files are there already.
+	const bool sameStore = map.savedStore && fs::equivalent(map.savedStore->dir(), store.dir(), ec);
+
+	// 1. The local maps' files (the only big writes; new content only).
+	std::map<uint64_t, LocalMapStore::Entry> entries;
+	std::vector<uint64_t> fresh;  // written now: their images too
+	for (const auto& [id, stub] : map.localMaps)
+	{
+		if (const auto it = map.saved.find(id);
+			sameStore && it != map.saved.end() && fs::is_regular_file(fs::path(store.dir()) / it->second.file, ec))
+		{
+			entries[id] = it->second;
+			continue;
+		}
+		// Offline local maps are read back one at a time: every observation is kept.
+		entries[id] = store.saveContent(*map.data(id));
+		fresh.push_back(id);
+	}
+
+	// 2. The index, renamed into place last: until then the previous map is the map.
 	const auto path = mapFilePath(dir);
 	const auto tmp = path + ".tmp-" + std::to_string(::getpid());
 	try
@@ -130,38 +164,60 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 			a << out;
 		}
 		a << static_cast<uint64_t>(map.localMaps.size());
-		// Offline local maps are read back one at a time: every observation is kept.
-		for (const auto& [id, lm] : map.localMaps) a << *map.data(id);
+		for (const auto& [id, lm] : map.localMaps)
+		{
+			// Labels only: the points and the image are in the store file.
+			LocalMap labels;
+			labels.id = lm->id;
+			labels.session = lm->session;
+			labels.keyframes = lm->keyframes;
+			labels.createdStamp = lm->createdStamp;
+			labels.updatedStamp = lm->updatedStamp;
+			labels.online = lm->online;
+			labels.imageResolution_m = lm->imageResolution_m;
+			labels.imageExtent_m = lm->imageExtent_m;
+			const auto& e = entries.at(id);
+			a << labels << e.file << e.points << e.bytes;
+		}
 		a << map.graph << map.placeIndexClass << map.placeIndex;
 	}
 	catch (...)
 	{
-		std::error_code ec;
 		fs::remove(tmp, ec);
 		throw;
 	}
-	// The local-map images, for a look: a fresh folder replaces the old one whole.
+	fs::rename(tmp, path);
+
+	// 3. The local-map images, for a look, and what the index no longer names.
 	const auto imgDir = fs::path(dir) / "localmaps";
-	const auto tmpDir = fs::path(dir) / (".localmaps.tmp-" + std::to_string(::getpid()));
-	fs::remove_all(tmpDir);
-	fs::create_directories(tmpDir);
-	for (const auto& [id, stub] : map.localMaps)
+	fs::create_directories(imgDir);
+	removeStaleTemporaries(imgDir.string());
+	for (const auto id : fresh)
 	{
 		const auto lm = map.data(id);
 		if (lm->imagePng.empty()) continue;
-		const auto name = mrpt::format("%04llu.png", static_cast<unsigned long long>(id));
-		std::ofstream o(tmpDir / name, std::ios::binary);
+		const auto name = imgDir / mrpt::format("%04llu.png", static_cast<unsigned long long>(id));
+		const auto tmpImg = name.string() + ".tmp-" + std::to_string(::getpid());
+		std::ofstream o(tmpImg, std::ios::binary);
 		o.write(reinterpret_cast<const char*>(lm->imagePng.data()), static_cast<std::streamsize>(lm->imagePng.size()));
+		o.close();
 		if (!o)
 		{
-			fs::remove_all(tmpDir);
-			fs::remove(tmp);
-			throw std::runtime_error("cannot write '" + (imgDir / name).string() + "'");
+			fs::remove(tmpImg, ec);
+			throw std::runtime_error("cannot write '" + name.string() + "'");
 		}
+		fs::rename(tmpImg, name);
 	}
-	fs::rename(tmp, path);
-	fs::remove_all(imgDir);
-	fs::rename(tmpDir, imgDir);
+	std::set<std::string> named;
+	for (const auto& [id, e] : entries) named.insert(e.file);
+	for (const auto& e : fs::directory_iterator(store.dir(), ec))
+		if (e.path().extension() == ".rslm" && !named.count(e.path().filename().string())) fs::remove(e.path(), ec);
+	for (const auto& e : fs::directory_iterator(imgDir, ec))
+	{
+		const auto stem = e.path().stem().string();
+		if (e.path().extension() != ".png" || stem.find_first_not_of("0123456789") != std::string::npos) continue;
+		if (!map.localMaps.count(std::stoull(stem))) fs::remove(e.path(), ec);
+	}
 }
 
 Map loadMap(const std::string& dir)
@@ -208,10 +264,21 @@ Map loadMap(const std::string& dir)
 		}
 		uint64_t nm = 0;
 		a >> nm;
+		if (version >= 3) map.savedStore = std::make_shared<LocalMapStore>((fs::path(dir) / "store").string());
 		for (uint64_t i = 0; i < nm; i++)
 		{
 			auto lm = std::make_shared<LocalMap>();
 			a >> *lm;
+			if (version >= 3)
+			{
+				LocalMapStore::Entry e;
+				a >> e.file >> e.points >> e.bytes;
+				if (!fs::is_regular_file(fs::path(map.savedStore->dir()) / e.file, ec))
+					throw std::runtime_error(
+						"local map " + std::to_string(lm->id) + ": its file '" +
+						(fs::path(map.savedStore->dir()) / e.file).string() + "' is missing");
+				map.saved[lm->id] = e;
+			}
 			for (const auto k : lm->keyframes)
 				if (!map.keyframes.count(k))
 					throw std::runtime_error(
@@ -219,6 +286,9 @@ Map loadMap(const std::string& dir)
 			if (map.localMaps.count(lm->id))
 				throw std::runtime_error("local map id " + std::to_string(lm->id) + " twice");
 			if (lm->online) map.onlineWhenSaved.insert(lm->id);
+			// Read from a file, every local map is offline: in the store (version 3) or, for
+			// older maps, in memory whole (Map::data serves it either way).
+			if (version >= 3) lm->online = false;
 			map.localMaps[lm->id] = lm;
 		}
 		a >> map.graph >> map.placeIndexClass >> map.placeIndex;

@@ -57,6 +57,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	entryMap_.clear();
 	trainingImages_.clear();
 	prevBow_.reset();
+	retiring_.clear();
 	trainedOn_ = 0;
 	decisions_.clear();
 }
@@ -233,6 +234,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	for (std::size_t i = 0; i < n; i++)
 		q.pts.emplace_back(kf.data->xyz[3 * i], kf.data->xyz[3 * i + 1], kf.data->xyz[3 * i + 2]);
 
+	if (!retiring_.empty()) retire(map.sessions - 1, kf.stamp);
 	std::optional<LoopConstraint> best;
 	std::size_t bestDecision = 0;
 	if (search_ != Search::Bow) searchByDistance(q, kf, map, poses, best, bestDecision);
@@ -304,8 +306,27 @@ bool BowLoopDetector::forget(uint64_t localMap)
 	return trainingImages_.erase(localMap) > 0 || found;
 }
 
+void BowLoopDetector::replaced(uint64_t older, const LocalMap& newer)
+{
+	retiring_[older] = {newer.session, newer.updatedStamp};
+}
+
+void BowLoopDetector::retire(uint32_t session, double stamp)
+{
+	for (auto it = retiring_.begin(); it != retiring_.end();)
+		if (it->second.first != session || it->second.second <= stamp - excludeRecent_s_)
+		{
+			forget(it->first);
+			it = retiring_.erase(it);
+		}
+		else
+			++it;
+}
+
 std::vector<uint8_t> BowLoopDetector::savePlaceIndex()
 {
+	// In the next session every local map is a candidate: the replaced ones go now.
+	retire(std::numeric_limits<uint32_t>::max(), 0);
 	if (!vocab_)
 	{
 		if (trainingImages_.size() < 2)

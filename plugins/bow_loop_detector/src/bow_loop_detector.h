@@ -35,6 +35,7 @@ class BowLoopDetector : public LoopDetector
 	RelocalizationResult locate(
 		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe) override;
 	bool forget(uint64_t localMap) override;
+	void replaced(uint64_t older, const LocalMap& newer) override;
 	std::vector<uint8_t> savePlaceIndex() override;
 	void loadPlaceIndex(const Map& map) override;
 
@@ -103,6 +104,11 @@ class BowLoopDetector : public LoopDetector
 	/** Online vocabulary only: the image words of every local map, to train it again. */
 	std::map<uint64_t, std::vector<bow::Descriptor>> trainingImages_;
 	std::optional<bow::BowVector> prevBow_;
+	/** Replaced local maps waiting to leave the database: until the newer one of their place
+	 *  is older than exclude_recent_s (a candidate), they still answer for the place. Value:
+	 *  the newer one's session and last update. */
+	std::map<uint64_t, std::pair<uint32_t, double>> retiring_;
+	void retire(uint32_t session, double stamp);
 	std::unique_ptr<features::OrbExtractor> orb_;  //!< relocalization queries
 };
 }  // namespace rasterslam

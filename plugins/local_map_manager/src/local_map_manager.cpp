@@ -401,7 +401,7 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		// searchable. One entry a place keeps the database and the query time flat on a route
 		// driven again and again; the older image stays in the store, so its entry can be made
 		// again.
-		if (cullOnLoop_ && !indexReplaced_ && !map_.localMaps.at(other)->online) up.replaced.push_back(other);
+		if (cullOnLoop_ && !indexReplaced_ && !map_.localMaps.at(other)->online) up.replaced.emplace_back(other, lm->id);
 	}
 	pendingLoops_.clear();
 	map_.localMaps[lm->id] = lm;
@@ -438,10 +438,12 @@ void LocalMapManager::loadMap(const std::string& dir)
 	// The earlier sessions' local maps wait in the offline store: loop closure and
 	// relocalization read them on demand, and memory does not grow with the map.
 	for (auto& [id, lm] : map_.localMaps)
-	{
-		lm->online = true;  // as loaded: points and image in memory, until stored
-		goOffline(id, "prior session");
-	}
+		if (lm->hasData())
+		{
+			// A map of version 1 or 2 (one file) came whole: its local maps go to the store.
+			lm->online = true;
+			goOffline(id, "prior session");
+		}
 	session_ = map_.sessions;
 	map_.sessions = session_ + 1;
 	open_.clear();
@@ -545,6 +547,7 @@ std::size_t LocalMapManager::removeLocalMaps(const std::set<uint64_t>& ids)
 			std::error_code ec;
 			std::filesystem::remove(map_.offline->pathOf(id), ec);
 		}
+		map_.saved.erase(id);  // its file in the map's store goes when the map is saved
 	}
 	auto& edges = map_.graph.edges;
 	edges.erase(

@@ -124,9 +124,9 @@ struct MappingUpdate
 		std::vector<uint8_t> imageDescriptors;
 	};
 	std::vector<Finished> finished;
-	/** Local maps the finished one replaced (update on revisit): they leave the place index,
-	 *  the new local map indexes their place. */
-	std::vector<uint64_t> replaced;
+	/** Local maps the finished one replaced (update on revisit), each with the one that
+	 *  replaced it: they leave the place index, the new local map indexes their place. */
+	std::vector<std::pair<uint64_t, uint64_t>> replaced;
 	/** Local BA's refined poses of the finished map's keyframes in its anchor's frame (the
 	 *  anchor itself not listed). The engine writes them into the pose graph. */
 	uint64_t anchor = 0;
@@ -244,9 +244,11 @@ class LoopDetector : public Plugin
 		(void)query, (void)map, (void)poses, (void)onlyKeyframe;
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot locate local maps");
 	}
-	/** A local map leaves the place index (pruned, or replaced on a revisit). Returns
-	 *  whether it was there. */
+	/** A local map leaves the place index now (pruned). Returns whether it was there. */
 	virtual bool forget(uint64_t /*localMap*/) { return false; }
+	/** A local map was replaced by a newer one of the same place (update on revisit): its
+	 *  entry leaves the place index once the newer one can be found in its stead. */
+	virtual void replaced(uint64_t /*older*/, const LocalMap& /*newer*/) {}
 	/** The place index as bytes to save with the map, and the class name that reads them. */
 	virtual std::vector<uint8_t> savePlaceIndex() = 0;
 	/** Restores a place index saved with `map` (after the map manager loaded it). */

@@ -4,6 +4,7 @@
 #include <rasterslam/io/trajectory_io.h>
 
 #include <string>
+#include <optional>
 #include <vector>
 
 namespace rasterslam::eval
@@ -28,8 +29,12 @@ struct AteResult
 	/** The rigid alignment applied to the estimate (Umeyama, no scale). */
 	Eigen::Isometry3d T_gt_est = Eigen::Isometry3d::Identity();
 };
-/** Absolute trajectory error of associated poses after the best SE(3) alignment. */
-AteResult computeAte(const Trajectory& gt, const Trajectory& est, const Association& a);
+/** Absolute trajectory error of associated poses after the best SE(3) alignment, or after a
+ *  given one (`fixed`: e.g. the alignment of another session of the same map, so that
+ *  sessions are judged in one common frame). */
+AteResult computeAte(
+	const Trajectory& gt, const Trajectory& est, const Association& a,
+	const std::optional<Eigen::Isometry3d>& fixed = std::nullopt);
 
 struct RpeResult
 {

@@ -54,10 +54,15 @@ class Map
    public:
 	std::map<uint64_t, Keyframe::Ptr> keyframes;
 	/** Every local map. One that left the online graph (online == false) is a stub here:
-	 *  labels and stamps only; its points and image are in `offline`. */
+	 *  labels and stamps only; its points and image are in `offline` or `savedStore`. */
 	std::map<uint64_t, LocalMap::Ptr> localMaps;
-	/** The offline store (null: nothing went offline). */
+	/** The offline store of this run (null: nothing went offline). */
 	std::shared_ptr<LocalMapStore> offline;
+	/** The store of the map folder this map was loaded from (null: none), and the local maps
+	 *  whose points and image are read from it when needed (loadMap keeps only labels in
+	 *  memory). */
+	std::shared_ptr<LocalMapStore> savedStore;
+	std::map<uint64_t, LocalMapStore::Entry> saved;
 	LocalMapGraph graph;
 	/** Poses of the keyframes loaded from a saved map (fixed in this session). */
 	std::map<uint64_t, mrpt::poses::CPose3D> priorPoses;
@@ -102,12 +107,17 @@ class Map
 	mutable Cache cache_;
 };
 
-/** Writes the map as `dir/map.rsmap` (gzip MRPT archive: magic, version, keyframes with the
- *  poses `poses` gives, local maps, graph, place index) and `dir/localmaps/NNNN.png`, each
- *  first under a temporary name. */
+/** Writes the map into `dir`: every local map's points and image as a file of
+ *  `dir/store/` (named by id and content; files the folder holds already are not written
+ *  again), then the index `dir/map.rsmap` (gzip MRPT archive: magic, version, sessions,
+ *  keyframes with the poses `poses` gives, local-map labels and their files, graph, place
+ *  index), then `dir/localmaps/NNNN.png` of new local maps; each under a temporary name
+ *  first. Store files and images no longer named by the index go last: a save stopped at
+ *  any point leaves the previous map loadable. */
 void saveMap(const Map& map, const PoseView& poses, const std::string& dir);
 /** Reads a map written by saveMap(); throws naming the file and what is wrong. Keyframe
- *  poses go to `priorPoses`. */
+ *  poses go to `priorPoses`. Local maps come back as labels, their points read from
+ *  `dir/store/` on demand (maps of versions 1 and 2, one file, are read whole). */
 Map loadMap(const std::string& dir);
 std::string mapFilePath(const std::string& dir);
 

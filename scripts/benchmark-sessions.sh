@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# Lifelong benchmark (the lifelong-maps issue's goals): ten sessions over one simulated town
+# (different routes, directions, start points, HDL-64E and VLP-16), each located in the map
+# the earlier ones left (`--map-in M --map-out M --require-localization`, no pose prior), then
+# a drive in another town against that map. Per session: located or not, ATE in the common
+# frame (every session judged with session 1's alignment, so a wrong anchoring shows as
+# metres), peak resident memory, the map's memory in the run and its size on disk.
+# usage: scripts/benchmark-sessions.sh     (env: BUILD, WORK)
+set -euo pipefail
+here="$(cd "$(dirname "$0")/.." && pwd)"
+BUILD="${BUILD:-$here/build}"
+WORK="${WORK:-$BUILD/bench-sessions}"
+bin="$BUILD/bin"
+rm -rf "$WORK"
+mkdir -p "$WORK"
+
+yamlv() { sed -n "s/^ *$2: *\([-0-9.eE+a-z]*\).*/\1/p" "$1" | head -n1; }
+jsons() { sed -n "s/.*\"$2\": \"\([^\"]*\)\".*/\1/p" <<<"$1" | head -n1; }
+jsonv() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" <<<"$1" | head -n1; }
+cfg="$WORK/slam.yaml"
+sed -e "s#vocabulary_file: ../vocab/#vocabulary_file: $here/share/rasterslam/vocab/#" \
+  "$here/share/rasterslam/config/slam.yaml" > "$cfg"
+
+# The town of rawlogs/town-loop.yaml: 3 x 2 blocks of 50 m, streets every 64 m.
+town() {
+  cat <<EOF
+town: {blocks_x: 3, blocks_y: 2, block_size_m: 50, street_width_m: 14, sidewalk_m: 3,
+       building_height_min_m: 6, building_height_max_m: 24, trees_per_100m: 4,
+       poles_per_100m: 3, cars_per_100m: 5, hills: 4, max_slope: 0.06, outskirts_m: 25}
+noise: {range_sigma_m: 0.02, dropout_prob: 0.02, intensity_sigma: 0.03}
+EOF
+}
+# scenario N SEED LIDAR SCANS WAYPOINTS: one session's scenario file (stamps a day apart).
+scenario() {
+  local f="$WORK/s$1.yaml"
+  {
+    echo "seed: $2"
+    echo "lidar: $3"
+    echo "scans: $4"
+    echo "rate_hz: 10"
+    echo "speed_mps: 8"
+    echo "start_stamp_s: $((1700000000 + 86400 * $1))"
+    echo "route: {waypoints: $5, closed: true, turn_radius_m: 6}"
+    town
+  } > "$f"
+  echo "$f"
+}
+# Ten routes over the town, each overlapping what the earlier ones mapped (about 1.1 laps).
+routes=(
+  "hdl64 530 [[0,0],[128,0],[128,64],[0,64]]"
+  "vlp16 530 [[0,64],[128,64],[128,0],[0,0]]"
+  "hdl64 530 [[64,0],[192,0],[192,64],[64,64]]"
+  "vlp16 530 [[0,0],[0,128],[64,128],[64,0]]"
+  "hdl64 530 [[192,64],[192,128],[0,128],[0,64]]"
+  "vlp16 530 [[128,0],[128,128],[192,128],[192,0]]"
+  "hdl64 880 [[0,0],[192,0],[192,128],[0,128]]"
+  "vlp16 350 [[64,64],[64,0],[0,0],[0,64]]"
+  "hdl64 530 [[128,64],[0,64],[0,0],[128,0]]"
+  "vlp16 530 [[64,0],[64,128],[128,128],[128,0]]"
+)
+map="$WORK/map"
+align=""
+printf '%-8s %-6s %6s %-8s %9s %9s %9s %10s %10s %9s\n' session lidar scans located hits ate_m \
+  peak_mb map_mem_mb map_disk_mb ms_scan
+for i in "${!routes[@]}"; do
+  n=$((i + 1))
+  read -r lidar scans wp <<<"${routes[$i]}"
+  sc=$(scenario "$n" 42 "$lidar" "$scans" "$wp")
+  "$bin/rasterslam-sim" --scenario "$sc" -o "$WORK/s$n.rawlog" --compress 0 >/dev/null 2>&1
+  out="$WORK/out$n"
+  if [ "$n" = 1 ]; then
+    "$bin/rasterslam" run --rawlog "$WORK/s$n.rawlog" --config "$cfg" --out "$out" --quiet --map-out "$map" >/dev/null
+  else
+    "$bin/rasterslam" run --rawlog "$WORK/s$n.rawlog" --config "$cfg" --out "$out" --quiet \
+      --map-in "$map" --map-out "$map" --require-localization >/dev/null || true
+  fi
+  # Session 1 defines the map frame: its alignment to the world is every session's.
+  if [ -z "$align" ]; then
+    j=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json)
+    align=$(jsons "$j" T_gt_est)
+  fi
+  j=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json --align "$align")
+  located=$([ "$n" = 1 ] && echo origin || yamlv "$out/run.yaml" localized_in_prior_map)
+  printf '%-8s %-6s %6s %-8s %9s %9.3f %9.1f %10.2f %10.2f %9.2f\n' "$n" "$lidar" "$scans" "$located" \
+    "$(yamlv "$out/run.yaml" prior_map_hits)" "$(jsonv "$j" ate_rmse_m)" "$(yamlv "$out/run.yaml" peak_rss_mb)" \
+    "$(yamlv "$out/run.yaml" map_memory_mb)" "$(du -sm "$map" | cut -f1)" \
+    "$(yamlv "$out/run.yaml" ms_per_scan_median)"
+  rm -f "$WORK/s$n.rawlog"
+done
+
+# Another town (another seed), driven against the map: it must never be located.
+sc=$(scenario 11 7 hdl64 530 "[[0,0],[128,0],[128,64],[0,64]]")
+"$bin/rasterslam-sim" --scenario "$sc" -o "$WORK/other.rawlog" --compress 0 >/dev/null 2>&1
+set +e
+"$bin/rasterslam" run --rawlog "$WORK/other.rawlog" --config "$cfg" --out "$WORK/other" --quiet \
+  --map-in "$map" --require-localization >/dev/null 2>&1
+rc=$?
+set -e
+echo "other town: exit $rc, located: $(yamlv "$WORK/other/run.yaml" localized_in_prior_map), hits in the map: $(yamlv "$WORK/other/run.yaml" prior_map_hits)"
+rm -f "$WORK/other.rawlog"
+"$bin/rasterslam" map info "$map" | head -n 6
