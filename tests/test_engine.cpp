@@ -107,7 +107,7 @@ TEST(Engine, KeyframesAndAPoseForEveryScan)
 	}
 	// A non-keyframe scan is placed relative to its keyframe.
 	EXPECT_EQ(res.scans[5].kfNode, 1u);
-	EXPECT_NEAR(res.scans[5].T_kf_scan.x(), 1 + std::cos(0.1), 1e-9);
+	EXPECT_NEAR(res.scans[5].T_kf_scan.x, 1 + std::cos(0.1), 1e-9);
 }
 
 TEST(Engine, FirstLastSelectInputIndices)

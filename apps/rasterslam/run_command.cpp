@@ -344,7 +344,7 @@ int runCommand(int argc, char** argv)
 		io::Trajectory gt, est;
 		for (std::size_t i = 0; i < res.scans.size(); i++)
 		{
-			gt.push_back({res.scans[i].stamp, io::toIsometry(*res.scans[i].groundTruth)});
+			gt.push_back({res.scans[i].stamp, io::toIsometry(mrpt::poses::CPose3D(*res.scans[i].groundTruth))});
 			est.push_back({res.scans[i].stamp, io::toIsometry(res.poses[i])});
 		}
 		const auto a = eval::associate(gt, est, true);

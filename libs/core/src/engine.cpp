@@ -352,7 +352,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		rec.index = scan->index;
 		rec.stamp = scan->stamp;
 		rec.numPoints = scan->points.size();
-		rec.groundTruth = scan->groundTruth;
+		if (scan->groundTruth) rec.groundTruth = scan->groundTruth->asTPose();
 		rec.ms.read = readMs;
 
 		if (opts.realtime)
@@ -609,13 +609,14 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			}
 		}
 		rec.kfNode = lastKf;
-		rec.T_kf_scan = currPose - lastKfPose;
-		rec.onlinePose = currPose;
+		const mrpt::poses::CPose3D T_kf_scan = currPose - lastKfPose;
+		rec.T_kf_scan = T_kf_scan.asTPose();
+		rec.onlinePose = currPose.asTPose();
 		// Exactly the identity on a keyframe: composing a rotation with its own inverse would
 		// feed rounding back into every following scan.
-		T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : rec.T_kf_scan;
+		T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : T_kf_scan;
 		rec.ms.total = msSince(tScan) + readMs;
-		rec.rssMb = currentRssMb();
+		rec.rssMb = static_cast<float>(currentRssMb());
 		res.scans.push_back(rec);
 		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
 	}
@@ -655,7 +656,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges, backend.fixedNodes());
 	}
 	res.poses.reserve(res.scans.size());
-	for (const auto& r : res.scans) res.poses.push_back(graph.nodes.at(r.kfNode) + r.T_kf_scan);
+	for (const auto& r : res.scans) res.poses.push_back(graph.nodes.at(r.kfNode) + mrpt::poses::CPose3D(r.T_kf_scan));
 	res.wall_s = std::chrono::duration<double>(Clock::now() - wall0).count();
 	return res;
 }

@@ -43,8 +43,9 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 	for (std::size_t i = 0; i < res.scans.size(); i++)
 	{
 		est.push_back({res.scans[i].stamp, toIsometry(res.poses[i])});
-		online.push_back({res.scans[i].stamp, toIsometry(res.scans[i].onlinePose)});
-		if (res.scans[i].groundTruth) gt.push_back({res.scans[i].stamp, toIsometry(*res.scans[i].groundTruth)});
+		online.push_back({res.scans[i].stamp, toIsometry(mrpt::poses::CPose3D(res.scans[i].onlinePose))});
+		if (res.scans[i].groundTruth)
+			gt.push_back({res.scans[i].stamp, toIsometry(mrpt::poses::CPose3D(*res.scans[i].groundTruth))});
 		else
 			allGt = false;
 	}

@@ -30,12 +30,14 @@ struct ScanRecord
 	bool keyframe = false;
 	bool late = false;  //!< --realtime: started after its due time
 	mrpt::graphs::TNodeID kfNode = 0;  //!< keyframe the scan is attached to
-	mrpt::poses::CPose3D T_kf_scan;  //!< its pose in the frame of that keyframe
+	// Poses as plain TPose3D (48 bytes, against 136 for a CPose3D with its cached rotation):
+	// a record is kept for every scan of a run, hours of them in a lifelong one.
+	mrpt::math::TPose3D T_kf_scan;  //!< its pose in the frame of that keyframe
 	/** The pose the scan had when it was processed (what a robot would have acted on). */
-	mrpt::poses::CPose3D onlinePose;
+	mrpt::math::TPose3D onlinePose;
 	StageTimes ms;
-	double rssMb = 0;  //!< resident memory of the process after the scan, MB
-	std::optional<mrpt::poses::CPose3D> groundTruth;
+	float rssMb = 0;  //!< resident memory of the process after the scan, MB
+	std::optional<mrpt::math::TPose3D> groundTruth;
 };
 
 struct RunOptions
