@@ -78,9 +78,17 @@ for in in "${inputs[@]}"; do
   run "$rawlog" "$slam" "$WORK/$name-slam"
   row "slam (final)" "$WORK/$name-slam" "$odo"
   printf '  %-26s %50s\n' "slam (online poses)" "ATE $(printf '%.3f' "$(ate "$WORK/$name-slam" trajectory_online.tum)") m"
-  awk -F, 'NR>1{n++; r[n]=$14; t[n]=$13} END{a=int(n*2/21); if(a<1)a=1; m=0; for(i=int(n*0.9);i<=n;i++) if(r[i]>m) m=r[i];
-    s1=0; s2=0; k=int(n/10); for(i=1;i<=k;i++) s1+=t[i]; for(i=n-k+1;i<=n;i++) s2+=t[i];
-    printf "  %-26s RSS %.1f MB at scan %d (2/21 of the run), %.1f MB max in the last 10%%; ms/scan mean %.2f first 10%%, %.2f last 10%%\n", "slam over the run", r[a], a, m, s1/k, s2/k}' "$WORK/$name-slam/timings.csv"
+  # Over the run: memory after 2/21 of it (lap 2 of the 21-lap drive) against the last 10 %,
+  # ms per scan first against last 10 % (rasterslam-eval timings; the plot beside the run).
+  n=$(($(wc -l < "$WORK/$name-slam/timings.csv") - 1))
+  k=$((n * 2 / 21)); [ "$k" -ge 1 ] || k=1
+  t=$("$bin/rasterslam-eval" timings "$WORK/$name-slam" --label "$name" --after-scan "$k" --json \
+      --plot "$WORK/$name-slam/timings.png")
+  tot=$(sed -n 's/.*"total_ms": {\([^}]*\)}.*/\1/p' <<<"$t")
+  aft=$(sed -n 's/.*"after_scan": {\([^}]*\)}.*/\1/p' <<<"$t")
+  printf '  %-26s RSS %.1f MB by scan %d, %.1f MB max in the last 10%% (x%.3f), %.2f MB/1000 scans; ms/scan %.2f first 10%%, %.2f last 10%%\n' \
+    "slam over the run" "$(json "$aft" rss_max_mb)" "$k" "$(json "$t" rss_last_max_mb)" "$(json "$aft" last_ratio)" \
+    "$(json "$t" rss_growth_mb_per_1000_scans)" "$(json "$tot" first)" "$(json "$tot" last)"
   run "$rawlog" "$wrong" "$WORK/$name-wrong"
   row "5 % loops wrong ($(yamlv "$WORK/$name-wrong/run.yaml" corrupted_loops_test_hook || true))" "$WORK/$name-wrong" "$odo"
   run "$rawlog" "$wrong30" "$WORK/$name-wrong30"
@@ -131,6 +139,18 @@ if [ -d "$DATA" ]; then
   printf '  session 2: located %s after %s hits, %s loop edges to session 1; interleaved ATE %.3f m, consecutive frames %.3f m (mean)\n' \
     "$(sed -n 's/^ *localized_in_prior_map: *//p' "$WORK/kitti-s2/run.yaml")" "$(yamlv "$WORK/kitti-s2/run.yaml" prior_map_hits)" \
     "$(yamlv "$WORK/kitti-s2/run.yaml" prior_map_loop_edges)" "$(json "$j" ate_rmse_m)" "$(json "$j" rpe_trans_mean_m)"
+  # The same two halves as two maps built separately, joined by `map merge`: each session's
+  # keyframes in the merged map against the truth.
+  rm -rf "$WORK/kitti-map-even" "$WORK/kitti-map-odd" "$WORK/kitti-merged" "$WORK/kitti-merged-x"
+  run "$WORK/kitti-0.rawlog" "$slam" "$WORK/kitti-m1" --map-out "$WORK/kitti-map-even"
+  run "$WORK/kitti-1.rawlog" "$slam" "$WORK/kitti-m2" --map-out "$WORK/kitti-map-odd"
+  m=$("$bin/rasterslam" map merge "$WORK/kitti-map-even" "$WORK/kitti-map-odd" --out "$WORK/kitti-merged" \
+      --config "$slam" --quiet | head -n1)
+  "$bin/rasterslam" map export "$WORK/kitti-merged" --out "$WORK/kitti-merged-x" >/dev/null
+  (echo "# timestamp tx ty tz qx qy qz qw"; grep -hv '^#' "$WORK/kitti-merged-x"/keyframes-s*.tum | sort -g) > "$WORK/kitti-merged-kf.tum"
+  j=$("$bin/rasterslam-eval" traj --gt "$WORK/kitti-both-groundtruth.tum" --est "$WORK/kitti-merged-kf.tum" --json)
+  printf '  map merge: %s\n  merged keyframes of both sessions: ATE %.3f m, consecutive keyframes %.3f m (mean), %s keyframes\n' \
+    "${m#rasterslam: }" "$(json "$j" ate_rmse_m)" "$(json "$j" rpe_trans_mean_m)" "$(json "$j" n_associated)"
 
   echo
   echo "== --realtime on the KITTI sample: late scans after the first, tracking p95 (ms)"

@@ -262,6 +262,11 @@ TEST(Mapping, UpdateOnRevisitAndCullingKeepEveryLocalMap)
 	ASSERT_EQ(run(cfg2, dir / "cull", " --map-out " + (dir / "cull/map").string()).exitCode, 0);
 	EXPECT_EQ(yamlNumber(dir / "cull/run.yaml", "loop_edges"), loops);
 	EXPECT_LE(yamlNumber(dir / "cull/run.yaml", "local_maps_online"), 4);
+	// Online optimizations move the online part only: fewer nodes than the run's keyframes.
+	EXPECT_LT(
+		yamlNumber(dir / "cull/run.yaml", "online_optimization_nodes_mean"), yamlNumber(dir / "cull/run.yaml", "keyframes"));
+	// A revisited place's older local map left the place index for the newer one.
+	EXPECT_GE(yamlNumber(dir / "loop/run.yaml", "local_maps_replaced"), 1);
 	EXPECT_LT(yamlNumber(dir / "cull/run.yaml", "map_memory_mb"), yamlNumber(dir / "loop/run.yaml", "map_memory_mb"));
 	const Map culled = loadMap((dir / "cull/map").string());
 	ASSERT_EQ(culled.localMaps.size(), map.localMaps.size());
@@ -485,7 +490,16 @@ TEST(Mapping, TwoRealSessionsLieInOneFrame)
 		" --quiet --out " + (dir / "odd").string() + " --map-in " + map + " --map-out " + map + " --require-localization");
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_GE(yamlNumber(dir / "odd/run.yaml", "prior_map_loop_edges"), 2);
-	EXPECT_EQ(loadMap(map).sessions, 2u);
+	const Map both = loadMap(map);
+	EXPECT_EQ(both.sessions, 2u);
+	// Where the second session was located, its local map is joined to the first session's.
+	ASSERT_GE(both.graph.count(LocalMapGraph::EdgeKind::Relocalization), 1u);
+	for (const auto& e : both.graph.edges)
+		if (e.kind == LocalMapGraph::EdgeKind::Relocalization)
+		{
+			EXPECT_EQ(both.localMaps.at(e.from)->session, 0u);
+			EXPECT_EQ(both.localMaps.at(e.to)->session, 1u);
+		}
 
 	// Measured: interleaved ATE 0.043 m, consecutive frames (one of each session) 0.049 m
 	// apart from the truth on average (0.115 m and 0.186 m before the sessions were linked).

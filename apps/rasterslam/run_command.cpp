@@ -314,6 +314,7 @@ int runCommand(int argc, char** argv)
 	summary["peak_rss_mb"] = peakRssMb();
 	summary["online_optimization_ms_total"] = res.onlineOptimization_ms;
 	summary["local_maps_replaced"] = res.localMapsReplaced;
+	summary["memory_trim_ms_total"] = res.memoryTrim_ms;
 	summary["online_optimization_nodes_mean"] =
 		res.onlineOptimizations ? static_cast<double>(res.onlineOptimizationNodes) / res.onlineOptimizations : 0.0;
 	yaml cpu = yaml::Map();

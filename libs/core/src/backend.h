@@ -83,6 +83,13 @@ class Backend
 	void writePoses(const std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D>& updated);
 	void workerLoop();
 	std::size_t kfSinceTrim_ = 0;
+	double trimMs_ = 0;
+
+   public:
+	/** Time spent returning freed memory to the system, ms. */
+	double trimMs() const { return trimMs_; }
+
+   private:
 
 	MapManager* mapManager_;
 	LoopDetector* loopDetector_;

@@ -573,7 +573,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			++res.keyframes;
 
 			detail::KeyframeJob job;
-			job.kf = KeyframeInfo{id, scan->index, scan->stamp, currPose, odo.keyframeData, lostSinceKf && haveKfBefore};
+			job.kf = KeyframeInfo{id, scan->index, scan->stamp, currPose, odo.keyframeData, lostSinceKf && haveKfBefore, {}};
+			if (relocEdge) job.kf.locatedAt = relocEdge->from;
 			lostSinceKf = false;
 			if (job.kf.data)
 			{
@@ -646,6 +647,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		}
 	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();
 	res.cpuBackend_s = backend.cpuSeconds();
+	res.memoryTrim_ms = backend.trimMs();
 	res.cpuTracking_s = detail::threadCpuSeconds() - cpu0;
 
 	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))

@@ -78,6 +78,7 @@ class LocalMapManager : public MapManager
 	std::optional<uint64_t> lastLocalMap_;  //!< the previous local map, when the open one continues it
 	std::map<uint64_t, std::vector<PointXYZI>> clouds_;  //!< non-ground points of open keyframes
 	std::vector<uint64_t> pendingLoops_;  //!< local maps a keyframe of the open map closed a loop with
+	std::vector<uint64_t> pendingRelocs_;  //!< local maps a keyframe of the open map was relocalized in
 	std::unique_ptr<features::OrbExtractor> orb_;
 	double route_m_ = 0;  //!< distance travelled, along the keyframes
 	std::optional<uint64_t> lastKf_;
@@ -138,6 +139,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	open_.clear();
 	clouds_.clear();
 	pendingLoops_.clear();
+	pendingRelocs_.clear();
 	lastLocalMap_.reset();
 	openSharesFirst_ = false;
 	route_m_ = 0;
@@ -238,6 +240,8 @@ MappingUpdate LocalMapManager::addKeyframe(
 	if (lastKf_ && !kf.afterLoss && map_.keyframes.count(*lastKf_))
 		route_m_ += poses.at(k->id).distanceTo(poses.at(*lastKf_));
 	lastKf_ = k->id;
+	if (kf.locatedAt)
+		if (const auto maps = map_.localMapsOf(*kf.locatedAt); !maps.empty()) pendingRelocs_.push_back(maps.front());
 	auto& cloud = clouds_[k->id];
 	if (raster)
 		for (const auto idx : raster->pixelToPoint)
@@ -393,6 +397,9 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	// Paper, Algorithm 1: the local map enters the local-map graph with its labels.
 	if (lastLocalMap_)
 		map_.graph.add(*lastLocalMap_, lm->id, LocalMapGraph::EdgeKind::Sequential, lm->createdStamp);
+	for (const auto other : pendingRelocs_)
+		if (map_.localMaps.count(other))
+			map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Relocalization, lm->createdStamp);
 	for (const auto other : pendingLoops_)
 	{
 		map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Loop, lm->updatedStamp);
@@ -404,6 +411,7 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		if (cullOnLoop_ && !indexReplaced_ && !map_.localMaps.at(other)->online) up.replaced.emplace_back(other, lm->id);
 	}
 	pendingLoops_.clear();
+	pendingRelocs_.clear();
 	map_.localMaps[lm->id] = lm;
 	routeAt_[lm->id] = route_m_;
 	up.finished.push_back(std::move(fin));
@@ -449,6 +457,7 @@ void LocalMapManager::loadMap(const std::string& dir)
 	open_.clear();
 	clouds_.clear();
 	pendingLoops_.clear();
+	pendingRelocs_.clear();
 	lastLocalMap_.reset();
 	openSharesFirst_ = false;
 	MRPT_LOG_INFO_FMT(

@@ -77,6 +77,7 @@ struct RunResult
 	std::size_t onlineOptimizations = 0;  //!< pose-graph optimizations during the run
 	double onlineOptimization_ms = 0;  //!< their total time
 	std::size_t onlineOptimizationNodes = 0;  //!< nodes they had, summed (moving and fixed)
+	double memoryTrim_ms = 0;  //!< time spent returning freed heap to the system
 	std::size_t corruptedLoops = 0;  //!< loop edges replaced by wrong ones (engine.test_corrupt_loops)
 	/** Edges that may be outliers (loop, relocalization), for the robust loss. */
 	EdgeSet uncertainEdges;

@@ -111,6 +111,9 @@ struct KeyframeInfo
 	/** Tracking was lost since the previous keyframe and not recovered: the two are not
 	 *  linked by a trustworthy motion (a local map must not span them). */
 	bool afterLoss = false;
+	/** The keyframe of the map this one was relocalized against (a graph edge joins them):
+	 *  a session anchored in a prior map, or tracking found again after a loss. */
+	std::optional<uint64_t> locatedAt;
 };
 
 /** What the mapping did with a keyframe, for the engine to apply. */
