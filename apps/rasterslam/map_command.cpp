@@ -154,9 +154,9 @@ int mapMerge(int argc, char** argv)
 	engine.saveMap(out, {});
 	const auto& t = rep.T_this_other;
 	std::printf(
-		"rasterslam: merged %s (%zu local maps) into %s (%u sessions): %zu of %zu keyframes located, %zu agree on x=%.2f y=%.2f "
+		"rasterslam: merged %s (%zu local maps) into %s (%u session%s): %zu of %zu keyframes located, %zu agree on x=%.2f y=%.2f "
 		"z=%.2f yaw=%.1f deg; optimized (chi2 %.3g -> %.3g, largest correction %.2f m)\n",
-		dirs[1].c_str(), rep.localMaps, dirs[0].c_str(), sessionsA, rep.located, rep.keyframesTried, rep.agreeing, t.x(), t.y(), t.z(),
+		dirs[1].c_str(), rep.localMaps, dirs[0].c_str(), sessionsA, sessionsA == 1 ? "" : "s", rep.located, rep.keyframesTried, rep.agreeing, t.x(), t.y(), t.z(),
 		t.yaw() * 180 / M_PI, rep.optimization.initialError, rep.optimization.finalError, rep.maxCorrection_m);
 	std::printf(
 		"rasterslam: map of %u sessions, %zu keyframes written to %s\n", rep.sessions, rep.keyframes,

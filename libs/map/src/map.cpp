@@ -176,6 +176,9 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 			labels.online = lm->online;
 			labels.imageResolution_m = lm->imageResolution_m;
 			labels.imageExtent_m = lm->imageExtent_m;
+			labels.baTracks = lm->baTracks;  // run reports read them without the points
+			labels.baInitialRms_m = lm->baInitialRms_m;
+			labels.baFinalRms_m = lm->baFinalRms_m;
 			const auto& e = entries.at(id);
 			a << labels << e.file << e.points << e.bytes;
 		}

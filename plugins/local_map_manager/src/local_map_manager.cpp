@@ -191,6 +191,9 @@ void LocalMapManager::goOffline(uint64_t localMap, const char* why)
 	stub->online = false;
 	stub->imageResolution_m = lm->imageResolution_m;
 	stub->imageExtent_m = lm->imageExtent_m;
+	stub->baTracks = lm->baTracks;
+	stub->baInitialRms_m = lm->baInitialRms_m;
+	stub->baFinalRms_m = lm->baFinalRms_m;
 	lm = stub;
 	routeAt_.erase(localMap);
 	MRPT_LOG_DEBUG_FMT("local map %llu offline (%s)", static_cast<unsigned long long>(localMap), why);
