@@ -19,8 +19,9 @@ usage:
                  [--realtime [--rate R]] [--sensor LABEL] [--save-images]
                  [--map-in DIR [--require-localization]] [--map-out DIR [--overwrite]]
                  [--quiet | --verbose]
-  rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] [--first N] [--last N]
-  rasterslam map info DIR | rasterslam map export DIR --out DIR2
+  rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] [--first N] [--last N] [--quiet|--verbose]
+  rasterslam map info DIR | export DIR --out DIR2 | merge A B --out C | prune DIR ...
+                 (rasterslam map --help for the map tools)
   rasterslam list-plugins
   rasterslam --help | --version
 
@@ -38,13 +39,14 @@ run options:
   --map-in DIR    start in a map saved by --map-out: the first scan is relocalized in it
                   (poses are then in that map's frame) and mapping goes on
   --map-out DIR   save the map (keyframes, local maps, their graph, the place index:
-                  DIR/map.rsmap, DIR/localmaps/*.png); needs a map_manager. A map already
+                  DIR/map.rsmap, DIR/store/, DIR/localmaps/*.png); needs a map_manager. A map already
                   there is only replaced when it is the --map-in map or with --overwrite
   --overwrite     let --map-out replace a map that is not the --map-in one
   --require-localization  with --map-in: exit 1 when the session is never located in the
                   map (a session never located is not saved into it either way)
 
-map info: sessions, local maps online and offline, keyframes, sizes and time span of a map.
+map: info (sessions, local maps online and offline, keyframes, sizes, time span), export (for
+  MRPT's tools, PCL and viewers), merge (two maps built separately), prune (old local maps).
 relocalize: locate every scan of FILE in the map saved in DIR, with no pose prior; writes
   DIR2/relocalization.txt (stamp, status, reason, local map, keyframe, score, inliers, pose
   x y z qx qy qz qw in the map frame). Default config: share/rasterslam/config/slam.yaml.

@@ -20,6 +20,7 @@ int relocalizeCommand(int argc, char** argv)
 {
 	std::string mapDir, rawlog, outDir, configPath;
 	std::optional<std::size_t> first, last;
+	auto level = mrpt::system::LVL_INFO;
 	for (int i = 1; i < argc; i++)
 	{
 		const std::string a = argv[i];
@@ -38,10 +39,14 @@ int relocalizeCommand(int argc, char** argv)
 			first = parseIndexArg(a, value());
 		else if (a == "--last")
 			last = parseIndexArg(a, value());
+		else if (a == "--quiet")
+			level = mrpt::system::LVL_ERROR;
+		else if (a == "--verbose")
+			level = mrpt::system::LVL_DEBUG;
 		else if (a == "-h" || a == "--help")
 		{
 			std::cout << "usage: rasterslam relocalize --map DIR --rawlog FILE --out DIR2 [--config FILE] "
-						 "[--first N] [--last N]\n";
+						 "[--first N] [--last N] [--quiet|--verbose]\n";
 			return 0;
 		}
 		else
@@ -54,6 +59,7 @@ int relocalizeCommand(int argc, char** argv)
 		io::ensureWritableDir(outDir);
 		if (configPath.empty()) configPath = findConfig("slam.yaml");
 		Engine engine(loadYamlFile(configPath), configPath);
+		engine.setLogLevel(level);
 		if (!engine.rasterizer() || !engine.loopDetector() || !engine.mapManager())
 			throw ConfigError(configPath + ": relocalize needs a rasterizer, a map_manager and a loop_detector section");
 		engine.loadMap(mapDir);
