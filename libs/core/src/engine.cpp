@@ -155,6 +155,10 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		anchorMinAgreeing_ = p.getInt("anchor_min_agreeing", anchorMinAgreeing_);
 		anchorAgree_m_ = p.getDouble("anchor_agree_m", anchorAgree_m_);
 		anchorAgree_deg_ = p.getDouble("anchor_agree_deg", anchorAgree_deg_);
+		anchorEveryScan_ = p.getBool("anchor_every_scan", anchorEveryScan_);
+		anchorHitSpacing_s_ = p.getDouble("anchor_hit_spacing_s", anchorHitSpacing_s_);
+		if (!(anchorHitSpacing_s_ >= 0))
+			throw ConfigError(source_ + ": key 'engine.anchor_hit_spacing_s' must be >= 0");
 		if (anchorMinAgreeing_ < 1) throw ConfigError(source_ + ": key 'engine.anchor_min_agreeing' must be >= 1");
 		if (!(anchorAgree_m_ > 0) || !(anchorAgree_deg_ > 0))
 			throw ConfigError(source_ + ": keys 'engine.anchor_agree_m' and 'anchor_agree_deg' must be > 0");
@@ -267,6 +271,13 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	const double cpu0 = detail::threadCpuSeconds();
 	bool lostSinceKf = false;
 	std::vector<mrpt::poses::CPose3D> anchorHits;  // --map-in: candidate session-to-map transforms
+	std::optional<double> lastAnchorHitStamp;
+	struct AnchorHit
+	{
+		RelocalizationResult rl;
+		mrpt::poses::CPose3D poseAtHit;  //!< the hit scan's pose in the session's frame
+	};
+	std::optional<AnchorHit> anchorReady;  // agreed, waiting for a keyframe
 
 	const auto wall0 = Clock::now();
 	std::optional<double> firstStamp;
@@ -412,10 +423,11 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		// motion prior, linked to the past only by a weak edge: a new, disconnected part that
 		// a later loop closure can join.
 		std::optional<LoopConstraint> relocEdge;
-		if (loopDetector_ && rasterPtr && !anchored && (!haveKf || odo.keyframe))
+		const bool atKeyframe = !haveKf || odo.keyframe;
+		if (loopDetector_ && rasterPtr && !anchored && (atKeyframe || anchorEveryScan_))
 		{
-			// A session in a prior map: try every keyframe until one is found in it, then
-			// move everything tracked so far into the map's frame.
+			// A session in a prior map: try every scan (or keyframe) until it is found there,
+			// then move everything tracked so far into the map's frame.
 			const auto t0 = Clock::now();
 			// Held until the session is moved into the map's frame: the back end must not see
 			// half of it (it holds this lock for a whole keyframe's work).
@@ -426,13 +438,16 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			// frame).
 			const bool earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
 			rec.ms.loop += msSince(t0);
-			if (earlier)
+			// Hits count when they are apart in time: neighbouring scans see the same place and
+			// would agree whether it is the right one or not.
+			if (earlier && (!lastAnchorHitStamp || scan->stamp >= *lastAnchorHitStamp + anchorHitSpacing_s_))
 			{
 				// Where this hit puts the session's frame in the map's. One hit is not enough: a
 				// wrong place can match as well as the right one, so the session is anchored only
-				// when engine.anchor_min_agreeing hits, at different keyframes, agree on it.
+				// when engine.anchor_min_agreeing hits agree on it.
 				const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
 				anchorHits.push_back(C);
+				lastAnchorHitStamp = scan->stamp;
 				std::size_t agreeing = 0;
 				for (const auto& h : anchorHits)
 				{
@@ -446,16 +461,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				res.anchorHits = anchorHits.size();
 				if (agreeing >= static_cast<std::size_t>(anchorMinAgreeing_))
 				{
-					std::lock_guard<std::mutex> lk(backend.graphMutex());
-					for (auto& [id, p] : graph.nodes) p = C + p;
-					lastKfPose = C + lastKfPose;
-					currPose = rl.pose;
-					anchored = true;
-					res.localized = true;
-					backend.setAnchored();
-					// The hit itself ties the session to the map in the graph.
-					relocEdge = relocalizationConstraint(rl);
-					++res.relocalized;
+					// The anchoring is made at a keyframe (a graph node): this one, or the next.
+					anchorReady = AnchorHit{rl, currPose};
 					MRPT_LOG_INFO_STREAM(
 						"scan " << scan->index << ": located in the prior map (local map " << rl.localMap << ", "
 								<< rl.inliers << " inliers; " << agreeing << " of " << anchorHits.size()
@@ -467,14 +474,36 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 								<< rl.inliers << " inliers): " << agreeing << " of " << anchorMinAgreeing_
 								<< " agreeing hits needed to anchor");
 			}
-			else
+			else if (!earlier)
 			{
 				++res.relocalizationFailures;
 				MRPT_LOG_THROTTLE_WARN_STREAM(
 					1.0, "scan " << scan->index << ": not located in the prior map yet (" << rl.reason << ")");
 			}
 		}
-		else if (
+		if (anchorReady && !anchored && atKeyframe)
+		{
+			// The hit's pose, carried to this scan by the odometry since.
+			const auto& [rl, poseAtHit] = *anchorReady;
+			const mrpt::poses::CPose3D sinceHit = currPose - poseAtHit;
+			const mrpt::poses::CPose3D here = rl.pose + sinceHit;
+			const mrpt::poses::CPose3D C = here + (mrpt::poses::CPose3D() - currPose);
+			{
+				std::lock_guard<std::mutex> lk(backend.graphMutex());
+				for (auto& [id, p] : graph.nodes) p = C + p;
+			}
+			lastKfPose = C + lastKfPose;
+			currPose = here;
+			anchored = true;
+			res.localized = true;
+			backend.setAnchored();
+			// The hit ties the session to the map in the graph (from this keyframe).
+			relocEdge = relocalizationConstraint(rl);
+			relocEdge->T_from_to = here - rl.keyframePose;
+			++res.relocalized;
+			anchorReady.reset();
+		}
+		if (!relocEdge &&
 			anchored && loopDetector_ && rasterPtr && haveKf && odo.status == TrackingStatus::Lost &&
 			relocalizeOnLoss_)
 		{

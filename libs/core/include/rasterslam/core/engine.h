@@ -193,6 +193,8 @@ class Engine : public mrpt::system::COutputLogger
 	double testCorruptLoops_ = 0;
 	int anchorMinAgreeing_ = 3;
 	double anchorAgree_m_ = 1.0, anchorAgree_deg_ = 3.0;
+	bool anchorEveryScan_ = true;
+	double anchorHitSpacing_s_ = 1.0;
 };
 
 /** Resident set size high-water mark of this process, MB (from /proc/self/status). */
