@@ -386,6 +386,7 @@ TEST(MapModel, OfflineStoreRoundTripChecksumAndOnDemandLoading)
 
 	// The map reads an offline local map from its store on demand, and saves it whole.
 	Map m;
+	m.sessions = 3;  // the local map is of session 2
 	m.offline = std::make_shared<LocalMapStore>(store.dir());
 	store.save(*lm);
 	auto stub = std::make_shared<LocalMap>();

@@ -364,6 +364,7 @@ TEST(Mapping, PruneKeepsTheNewestOfEachPlaceAndTheMapStaysUsable)
 	for (const auto& [id, lm] : two.localMaps) ++had[lm->session];
 	for (const auto& [id, lm] : one.localMaps) ++kept[lm->session];
 	for (const auto id : two.onlineWhenSaved) EXPECT_TRUE(one.localMaps.count(id)) << id;
+	EXPECT_EQ(one.onlineWhenSaved, two.onlineWhenSaved);  // a second prune protects them too
 	EXPECT_GE(kept[1], two.onlineWhenSaved.size());
 	EXPECT_LT(kept[0], had[0] / 2);
 	// No keyframe is left without a local map, no edge without its ends (loadMap checks).
@@ -576,6 +577,9 @@ TEST(Mapping, MapsBuiltSeparatelyAreMergedIntoOneFrame)
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find("--overwrite"), std::string::npos) << r.output;
 	EXPECT_EQ(merge("map-even", "merged", " --overwrite").exitCode, 1);
+	r = merge("map-even", "map-even", " --overwrite");
+	EXPECT_EQ(r.exitCode, 1);
+	EXPECT_NE(r.output.find("the same map"), std::string::npos) << r.output;
 	EXPECT_EQ(loadMap(merged).keyframes.size(), m.keyframes.size());
 }
 

@@ -142,6 +142,8 @@ int mapMerge(int argc, char** argv)
 	std::error_code ec;
 	if (fs::exists(mapFilePath(out), ec) && !overwrite)
 		throw std::runtime_error("--out " + out + " holds a map already: pass --overwrite to replace it");
+	if (fs::exists(dirs[0], ec) && fs::exists(dirs[1], ec) && fs::equivalent(dirs[0], dirs[1], ec))
+		throw std::runtime_error("map merge: A and B are the same map ('" + dirs[0] + "')");
 	if (fs::exists(dirs[1], ec) && fs::exists(out, ec) && fs::equivalent(dirs[1], out, ec))
 		throw std::runtime_error("--out " + out + " is the map being merged in (B): write to A or a new folder");
 	if (configPath.empty()) configPath = findConfig("slam.yaml");

@@ -95,7 +95,11 @@ void Backend::workerLoop()
 		}
 		try
 		{
-			if (error().empty()) process(job);
+			if (error().empty())
+			{
+				process(job);
+				returnFreedMemory();  // outside the map lock: the tracking may be relocalizing
+			}
 		}
 		catch (const std::exception& e)
 		{
@@ -253,6 +257,23 @@ void Backend::optimizeNow()
 	res_.onlineOptimizationNodes += g.nodes.size();
 }
 
+void Backend::returnFreedMemory()
+{
+	// Freed heap pages go back to the system every few keyframes. Scans, images and loaded
+	// candidates are blocks of 0.5-2 MB; glibc serves them from the heap once the first one
+	// is freed, and the holes they leave are kept resident: without this, memory climbs by
+	// some 20 MB between trims on a long run. A trim costs about a millisecond.
+	if (++kfSinceTrim_ >= 5)
+	{
+		kfSinceTrim_ = 0;
+#ifdef __GLIBC__
+		const auto t0 = Clock::now();
+		::malloc_trim(0);
+		trimMs_ += msSince(t0);
+#endif
+	}
+}
+
 void Backend::process(KeyframeJob& job)
 {
 	StageTimes t;
@@ -314,17 +335,6 @@ void Backend::process(KeyframeJob& job)
 		t.loop = msSince(t0);
 	}
 	times_.emplace_back(job.record, t);
-	// Freed heap pages go back to the system every few keyframes. Scans, images and loaded
-	// candidates are blocks of 0.5-2 MB; glibc serves them from the heap once the first one
-	// is freed, and the holes they leave are kept resident: without this, memory climbs by
-	// some 20 MB between trims on a long run. A trim costs about a millisecond.
-	if (++kfSinceTrim_ >= 5)
-	{
-		kfSinceTrim_ = 0;
-		const auto t0 = Clock::now();
-		::malloc_trim(0);
-		trimMs_ += msSince(t0);
-	}
 }
 
 }  // namespace rasterslam::detail

@@ -82,6 +82,7 @@ class Backend
 	 *  went on meanwhile) move with it. Caller holds graphMutex_. */
 	void writePoses(const std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D>& updated);
 	void workerLoop();
+	void returnFreedMemory();
 	std::size_t kfSinceTrim_ = 0;
 	double trimMs_ = 0;
 

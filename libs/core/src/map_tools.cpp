@@ -147,6 +147,10 @@ PruneReport Engine::pruneMap(const PruneOptions& opts)
 {
 	if (!mapManager_) throw ConfigError(source_ + ": pruning a map needs a map_manager");
 	const Map& map = mapManager_->map();
+	if (!map.placeIndex.empty() && !loopDetector_)
+		throw ConfigError(
+			source_ + ": the map has a place index and the config no loop_detector to keep it up to date: use the "
+					  "config the map was made with (e.g. slam.yaml)");
 	PruneReport rep;
 	rep.localMaps = map.localMaps.size();
 	// Newest first: a later session, then a later update.

@@ -4,6 +4,7 @@
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/system/crc.h>
 #include <rasterslam/map/local_map_store.h>
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -67,12 +68,19 @@ void writeFile(const std::string& path, const Payload& payload)
 		put(&crc, 4);
 		put(payload.bytes, n);
 		f.flush();
+		f.close();
 		if (!f)
 		{
 			std::error_code ec;
 			fs::remove(tmp, ec);
 			throw std::runtime_error("cannot write local map '" + path + "'");
 		}
+	}
+	// On the disk before it is named: an index that survives a power cut must find it whole.
+	if (const int fd = ::open(tmp.c_str(), O_RDONLY); fd >= 0)
+	{
+		::fsync(fd);
+		::close(fd);
 	}
 	fs::rename(tmp, path);
 }

@@ -3,10 +3,13 @@
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/stl_serialization.h>
 #include <rasterslam/map/map.h>
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstring>
 
 #include <filesystem>
 #include <fstream>
@@ -95,6 +98,39 @@ std::string mapFilePath(const std::string& dir) { return (fs::path(dir) / "map.r
 
 namespace
 {
+/** Flushes a file or folder to the disk: a map named by an index that survived a power cut
+ *  must find its files whole. Best effort (a file system may not support it). */
+void syncPath(const fs::path& p)
+{
+	const int fd = ::open(p.c_str(), O_RDONLY);
+	if (fd < 0) return;
+	::fsync(fd);
+	::close(fd);
+}
+
+/** An exclusive lock on DIR/.lock for the time of a save. */
+class FolderLock
+{
+   public:
+	explicit FolderLock(const std::string& dir)
+	{
+		const auto path = (fs::path(dir) / ".lock").string();
+		fd_ = ::open(path.c_str(), O_RDWR | O_CREAT, 0644);
+		if (fd_ < 0) throw std::runtime_error("cannot write in map folder '" + dir + "': " + std::strerror(errno));
+		if (::flock(fd_, LOCK_EX) != 0)
+		{
+			::close(fd_);
+			throw std::runtime_error("cannot lock map folder '" + dir + "': " + std::strerror(errno));
+		}
+	}
+	~FolderLock() { ::close(fd_); }
+	FolderLock(const FolderLock&) = delete;
+	FolderLock& operator=(const FolderLock&) = delete;
+
+   private:
+	int fd_ = -1;
+};
+
 /** Temporary files an interrupted save left behind (their process is gone): a killed save
  *  must not leave them to fill the disk. */
 void removeStaleTemporaries(const std::string& dir)
@@ -113,7 +149,7 @@ void removeStaleTemporaries(const std::string& dir)
 		const std::string pid = name.substr(at + 5);
 		if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos || pid.size() > 9) continue;
 		const auto p = static_cast<pid_t>(std::stol(pid));
-		if (p == ::getpid() || (::kill(p, 0) != 0 && errno == ESRCH)) fs::remove_all(e.path(), ec);
+		if (p != ::getpid() && ::kill(p, 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
 	}
 }
 }  // namespace
@@ -122,6 +158,9 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 {
 	if (map.localMaps.empty()) throw std::runtime_error("the map has no local map: there is nothing to save");
 	fs::create_directories(dir);
+	// One writer at a time: another process's cleanup must not remove files this save is
+	// about to name (the lock goes with the descriptor, also when the process is killed).
+	const FolderLock lock(dir);
 	removeStaleTemporaries(dir);
 	const LocalMapStore store((fs::path(dir) / "store").string());
 	removeStaleTemporaries(store.dir());
@@ -145,7 +184,31 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 		fresh.push_back(id);
 	}
 
-	// 2. The index, renamed into place last: until then the previous map is the map.
+	// 2. The new local maps' images, for a look (nothing refers to them, so before the index).
+	const auto imgDir = fs::path(dir) / "localmaps";
+	fs::create_directories(imgDir);
+	removeStaleTemporaries(imgDir.string());
+	syncPath(store.dir());
+	const std::set<uint64_t> isFresh(fresh.begin(), fresh.end());
+	for (const auto& [id, stub] : map.localMaps)
+	{
+		const auto name = imgDir / mrpt::format("%04llu.png", static_cast<unsigned long long>(id));
+		// New ones, and any a killed save did not get to.
+		if (!isFresh.count(id) && fs::exists(name, ec)) continue;
+		const auto lm = map.data(id);
+		if (lm->imagePng.empty()) continue;
+		const auto tmpImg = name.string() + ".tmp-" + std::to_string(::getpid());
+		std::ofstream o(tmpImg, std::ios::binary);
+		o.write(reinterpret_cast<const char*>(lm->imagePng.data()), static_cast<std::streamsize>(lm->imagePng.size()));
+		o.close();
+		if (!o)
+		{
+			fs::remove(tmpImg, ec);
+			throw std::runtime_error("cannot write '" + name.string() + "'");
+		}
+		fs::rename(tmpImg, name);
+	}
+	// 3. The index, renamed into place last: until then the previous map is the map.
 	const auto path = mapFilePath(dir);
 	const auto tmp = path + ".tmp-" + std::to_string(::getpid());
 	try
@@ -173,7 +236,7 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 			labels.keyframes = lm->keyframes;
 			labels.createdStamp = lm->createdStamp;
 			labels.updatedStamp = lm->updatedStamp;
-			labels.online = lm->online;
+			labels.online = lm->online || map.keepOnline.count(id) > 0;
 			labels.imageResolution_m = lm->imageResolution_m;
 			labels.imageExtent_m = lm->imageExtent_m;
 			labels.baTracks = lm->baTracks;  // run reports read them without the points
@@ -189,28 +252,11 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 		fs::remove(tmp, ec);
 		throw;
 	}
+	syncPath(tmp);
 	fs::rename(tmp, path);
+	syncPath(dir);
 
-	// 3. The local-map images, for a look, and what the index no longer names.
-	const auto imgDir = fs::path(dir) / "localmaps";
-	fs::create_directories(imgDir);
-	removeStaleTemporaries(imgDir.string());
-	for (const auto id : fresh)
-	{
-		const auto lm = map.data(id);
-		if (lm->imagePng.empty()) continue;
-		const auto name = imgDir / mrpt::format("%04llu.png", static_cast<unsigned long long>(id));
-		const auto tmpImg = name.string() + ".tmp-" + std::to_string(::getpid());
-		std::ofstream o(tmpImg, std::ios::binary);
-		o.write(reinterpret_cast<const char*>(lm->imagePng.data()), static_cast<std::streamsize>(lm->imagePng.size()));
-		o.close();
-		if (!o)
-		{
-			fs::remove(tmpImg, ec);
-			throw std::runtime_error("cannot write '" + name.string() + "'");
-		}
-		fs::rename(tmpImg, name);
-	}
+	// 4. What the index no longer names.
 	std::set<std::string> named;
 	for (const auto& [id, e] : entries) named.insert(e.file);
 	for (const auto& e : fs::directory_iterator(store.dir(), ec))
@@ -219,6 +265,7 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 	{
 		const auto stem = e.path().stem().string();
 		if (e.path().extension() != ".png" || stem.find_first_not_of("0123456789") != std::string::npos) continue;
+		if (stem.empty() || stem.size() > 18) continue;
 		if (!map.localMaps.count(std::stoull(stem))) fs::remove(e.path(), ec);
 	}
 }
@@ -262,6 +309,10 @@ Map loadMap(const std::string& dir)
 			auto k = std::make_shared<Keyframe>();
 			a >> *k;
 			if (map.keyframes.count(k->id)) throw std::runtime_error("keyframe id " + std::to_string(k->id) + " twice");
+			if (version >= 2 && k->session >= map.sessions)
+				throw std::runtime_error(
+					"keyframe " + std::to_string(k->id) + " of session " + std::to_string(k->session) + " in a map of " +
+					std::to_string(map.sessions) + " sessions");
 			map.priorPoses[k->id] = k->pose;
 			map.keyframes[k->id] = k;
 		}
@@ -276,6 +327,12 @@ Map loadMap(const std::string& dir)
 			{
 				LocalMapStore::Entry e;
 				a >> e.file >> e.points >> e.bytes;
+				// NNNNNN-CCCCCCCC.rslm of this very local map: nothing outside the store is named.
+				const auto idPart = mrpt::format("%06llu-", static_cast<unsigned long long>(lm->id));
+				if (e.file.size() != idPart.size() + 13 || e.file.compare(0, idPart.size(), idPart) != 0 ||
+					e.file.compare(e.file.size() - 5, 5, ".rslm") != 0 ||
+					e.file.find_first_not_of("0123456789abcdef", idPart.size()) != e.file.size() - 5)
+					throw std::runtime_error("local map " + std::to_string(lm->id) + ": bad file name '" + e.file + "'");
 				if (!fs::is_regular_file(fs::path(map.savedStore->dir()) / e.file, ec))
 					throw std::runtime_error(
 						"local map " + std::to_string(lm->id) + ": its file '" +
@@ -286,6 +343,10 @@ Map loadMap(const std::string& dir)
 				if (!map.keyframes.count(k))
 					throw std::runtime_error(
 						"local map " + std::to_string(lm->id) + " refers to missing keyframe " + std::to_string(k));
+			if (version >= 2 && lm->session >= map.sessions)
+				throw std::runtime_error(
+					"local map " + std::to_string(lm->id) + " of session " + std::to_string(lm->session) + " in a map of " +
+					std::to_string(map.sessions) + " sessions");
 			if (map.localMaps.count(lm->id))
 				throw std::runtime_error("local map id " + std::to_string(lm->id) + " twice");
 			if (lm->online) map.onlineWhenSaved.insert(lm->id);

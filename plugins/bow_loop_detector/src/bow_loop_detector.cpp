@@ -372,6 +372,10 @@ void BowLoopDetector::loadPlaceIndex(const Map& map)
 		if (!map.localMaps.count(lm)) throw std::runtime_error("the place index refers to a missing local map");
 		entryMap_[e] = lm;
 	}
+	if (entryMap_.size() != db_.size())
+		throw std::runtime_error(
+			"the place index has " + std::to_string(db_.size()) + " entries and " + std::to_string(entryMap_.size()) +
+			" of them name a local map");
 	trainingImages_.clear();
 	prevBow_.reset();
 	online_ = false;  // the map's vocabulary stays

@@ -243,8 +243,6 @@ MappingUpdate LocalMapManager::addKeyframe(
 	if (lastKf_ && !kf.afterLoss && map_.keyframes.count(*lastKf_))
 		route_m_ += poses.at(k->id).distanceTo(poses.at(*lastKf_));
 	lastKf_ = k->id;
-	if (kf.locatedAt)
-		if (const auto maps = map_.localMapsOf(*kf.locatedAt); !maps.empty()) pendingRelocs_.push_back(maps.front());
 	auto& cloud = clouds_[k->id];
 	if (raster)
 		for (const auto idx : raster->pixelToPoint)
@@ -253,6 +251,11 @@ MappingUpdate LocalMapManager::addKeyframe(
 	MappingUpdate up;
 	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.
 	if (kf.afterLoss && !open_.empty()) finishOpen(poses, up, false);
+	// After that: the edge belongs to the local map this keyframe starts or joins.
+	if (kf.locatedAt)
+		if (const auto maps = map_.localMapsOf(*kf.locatedAt);
+			!maps.empty() && std::find(pendingRelocs_.begin(), pendingRelocs_.end(), maps.front()) == pendingRelocs_.end())
+			pendingRelocs_.push_back(maps.front());
 	open_.push_back(k->id);
 	bool full = static_cast<int>(open_.size()) >= keyframesPerMap_;
 	if (!full && open_.size() > 1)
@@ -593,6 +596,8 @@ void LocalMapManager::saveMap(
 	for (const auto& [id, k] : map_.keyframes) added = added || k->session == session_;
 	const uint32_t sessions = map_.sessions;
 	std::optional<SessionRecord> record;
+	// A session that added nothing (prune, merge) keeps what the map was saved with online.
+	map_.keepOnline = added ? std::set<uint64_t>{} : map_.onlineWhenSaved;
 	if (!added && map_.sessions == session_ + 1)
 	{
 		map_.sessions = session_;

@@ -74,6 +74,9 @@ class Map
 	uint32_t sessions = 0;
 	/** Local maps that were online when the map was saved (filled by loadMap()). */
 	std::set<uint64_t> onlineWhenSaved;
+	/** Local maps saveMap() marks online although they are offline here (a map tool saving
+	 *  a map it only changed keeps the flags it was saved with). */
+	std::set<uint64_t> keepOnline;
 	/** What is known of each session (maps of version 1 have none). */
 	std::map<uint32_t, SessionRecord> sessionRecords;
 
