@@ -253,7 +253,11 @@ int mapPrune(int argc, char** argv)
 	std::printf(
 		"rasterslam: %s %zu of %zu local maps (%zu places)%s%s%s\n", opts.dryRun ? "would drop" : "dropped",
 		rep.dropped.size(), rep.localMaps, rep.places, ids.empty() ? "" : ": ", ids.c_str(),
-		opts.dryRun ? "" : mrpt::format("; %zu keyframes dropped with them", rep.keyframesDropped).c_str());
+		opts.dryRun ? ""
+					: mrpt::format(
+						  "; %zu keyframes dropped with them, %zu local maps they had replaced back in the place index",
+						  rep.keyframesDropped, rep.reindexed)
+						  .c_str());
 	return 0;
 }
 }  // namespace

@@ -153,12 +153,18 @@ PruneReport Engine::pruneMap(const PruneOptions& opts)
 					  "config the map was made with (e.g. slam.yaml)");
 	PruneReport rep;
 	rep.localMaps = map.localMaps.size();
-	// Newest first: a later session, then a later update.
+	// Newest first: a session made later (its record's time; a merged map's sessions keep
+	// theirs, whatever their ids), then a later update.
+	auto made = [&](uint32_t s) {
+		const auto it = map.sessionRecords.find(s);
+		return it == map.sessionRecords.end() ? std::string() : it->second.startedAt;
+	};
 	std::vector<uint64_t> ids;
 	for (const auto& [id, lm] : map.localMaps) ids.push_back(id);
 	std::sort(ids.begin(), ids.end(), [&](uint64_t a, uint64_t b) {
 		const auto &x = *map.localMaps.at(a), &y = *map.localMaps.at(b);
-		return std::tie(x.session, x.updatedStamp, x.id) > std::tie(y.session, y.updatedStamp, y.id);
+		return std::make_tuple(made(x.session), x.session, x.updatedStamp, x.id) >
+			   std::make_tuple(made(y.session), y.session, y.updatedStamp, y.id);
 	});
 	// A place: local maps whose anchors lie within place_radius_m of each other. Going from
 	// the newest, a local map is surplus where `keepPerPlace` kept ones are that near already.
@@ -182,9 +188,22 @@ PruneReport Engine::pruneMap(const PruneOptions& opts)
 		throw std::runtime_error("every local map of the map would be dropped: nothing is changed");
 	rep.dropped.assign(drop.begin(), drop.end());
 	if (opts.dryRun || drop.empty()) return rep;
+	// Kept local maps that a dropped one replaced on a revisit: their place-index entry had
+	// gone to it, so they take it back (from their image), or the place could not be found.
+	std::set<uint64_t> replacedByDropped;
+	for (const auto& e : map.graph.edges)
+		if (e.kind == LocalMapGraph::EdgeKind::Loop && drop.count(e.to) && !drop.count(e.from))
+			replacedByDropped.insert(e.from);
 	for (const auto id : drop)
 		if (loopDetector_) loopDetector_->forget(id);
 	rep.keyframesDropped = mapManager_->removeLocalMaps(drop);
+	if (loopDetector_)
+		for (const auto id : replacedByDropped)
+			if (!loopDetector_->indexes(id))
+			{
+				loopDetector_->index(*mapManager_->map().localMaps.at(id), mapManager_->imageDescriptors(id));
+				++rep.reindexed;
+			}
 	return rep;
 }
 

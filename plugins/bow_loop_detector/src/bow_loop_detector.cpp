@@ -291,6 +291,13 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	return out;
 }
 
+bool BowLoopDetector::indexes(uint64_t localMap) const
+{
+	for (const auto& [e, lm] : entryMap_)
+		if (lm == localMap) return true;
+	return false;
+}
+
 bool BowLoopDetector::forget(uint64_t localMap)
 {
 	bool found = false;

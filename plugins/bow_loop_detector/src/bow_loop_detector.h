@@ -35,6 +35,7 @@ class BowLoopDetector : public LoopDetector
 	RelocalizationResult locate(
 		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe) override;
 	bool forget(uint64_t localMap) override;
+	bool indexes(uint64_t localMap) const override;
 	void replaced(uint64_t older, const LocalMap& newer) override;
 	std::vector<uint8_t> savePlaceIndex() override;
 	void loadPlaceIndex(const Map& map) override;

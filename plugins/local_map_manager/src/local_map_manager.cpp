@@ -33,6 +33,7 @@ class LocalMapManager : public MapManager
 		const std::vector<std::pair<uint64_t, uint64_t>>& links) override;
 	void loadMap(const std::string& dir) override;
 	std::size_t removeLocalMaps(const std::set<uint64_t>& localMaps) override;
+	std::vector<uint8_t> imageDescriptors(uint64_t localMap) override;
 	~LocalMapManager() override;
 	void saveMap(
 		const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
@@ -52,6 +53,8 @@ class LocalMapManager : public MapManager
 	/** Moves a local map to the offline store, leaving a stub with its labels. */
 	void goOffline(uint64_t localMap, const char* why);
 	LocalMapStore& store();
+	/** ORB descriptors of a local map's image (as finishOpen computed them). */
+	std::vector<uint8_t> wordsOf(const LocalMap& lm);
 
 	// parameters
 	int keyframesPerMap_ = 5;
@@ -519,15 +522,7 @@ MapManager::Added LocalMapManager::addMap(
 		// those the map had when it was made.
 		MappingUpdate::Finished fin;
 		fin.localMap = lm->id;
-		if (!lm->imagePng.empty())
-		{
-			const cv::Mat img = cv::imdecode(lm->imagePng, cv::IMREAD_GRAYSCALE);
-			if (img.empty()) throw std::runtime_error("merge: the image of local map " + std::to_string(id) + " cannot be decoded");
-			std::vector<cv::KeyPoint> kps;
-			cv::Mat desc;
-			orb_->extract(img, kps, desc);
-			if (desc.rows > 0) fin.imageDescriptors.assign(desc.datastart, desc.dataend);
-		}
+		fin.imageDescriptors = wordsOf(*lm);
 		out.localMaps.push_back(std::move(fin));
 		map_.localMaps[lm->id] = lm;
 		goOffline(lm->id, "merged");
@@ -546,6 +541,21 @@ MapManager::Added LocalMapManager::addMap(
 		other.sessions);
 	return out;
 }
+
+std::vector<uint8_t> LocalMapManager::wordsOf(const LocalMap& lm)
+{
+	std::vector<uint8_t> out;
+	if (lm.imagePng.empty()) return out;
+	const cv::Mat img = cv::imdecode(lm.imagePng, cv::IMREAD_GRAYSCALE);
+	if (img.empty()) throw std::runtime_error("the image of local map " + std::to_string(lm.id) + " cannot be decoded");
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat desc;
+	orb_->extract(img, kps, desc);
+	if (desc.rows > 0) out.assign(desc.datastart, desc.dataend);
+	return out;
+}
+
+std::vector<uint8_t> LocalMapManager::imageDescriptors(uint64_t localMap) { return wordsOf(*map_.data(localMap)); }
 
 std::size_t LocalMapManager::removeLocalMaps(const std::set<uint64_t>& ids)
 {

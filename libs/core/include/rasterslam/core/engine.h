@@ -128,6 +128,8 @@ struct PruneReport
 	std::size_t places = 0;  //!< local maps with no kept one within the radius (a rough count)
 	std::vector<uint64_t> dropped;  //!< local maps
 	std::size_t keyframesDropped = 0;
+	/** Kept local maps put back into the place index (a dropped one had replaced them). */
+	std::size_t reindexed = 0;
 };
 
 /** Top-level config sections: plugins, rasterizer, odometry, map_manager, loop_detector,

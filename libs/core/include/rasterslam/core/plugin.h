@@ -170,6 +170,8 @@ class MapManager : public Plugin
 	{
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot merge maps");
 	}
+	/** The ORB descriptors of a local map's image (32 bytes each), for the place index. */
+	virtual std::vector<uint8_t> imageDescriptors(uint64_t /*localMap*/) { return {}; }
 	/** Removes local maps (`map prune`) with their graph edges, and the keyframes no
 	 *  remaining local map holds. Returns the keyframes removed. */
 	virtual std::size_t removeLocalMaps(const std::set<uint64_t>& /*localMaps*/)
@@ -247,6 +249,8 @@ class LoopDetector : public Plugin
 		(void)query, (void)map, (void)poses, (void)onlyKeyframe;
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot locate local maps");
 	}
+	/** Whether the place index has an entry for the local map. */
+	virtual bool indexes(uint64_t /*localMap*/) const { return false; }
 	/** A local map leaves the place index now (pruned). Returns whether it was there. */
 	virtual bool forget(uint64_t /*localMap*/) { return false; }
 	/** A local map was replaced by a newer one of the same place (update on revisit): its
