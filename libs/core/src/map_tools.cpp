@@ -135,9 +135,15 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		rep.maxCorrection_m = std::max(rep.maxCorrection_m, poses[id].distanceTo(before.at(offset + id)));
 	}
 
+	// B's local maps enter the place index, but not those B had itself retired (replaced on
+	// a revisit by a newer one of the same place).
+	const auto inB = loopDetector_->indexedIn(other);
 	const auto added = mapManager_->addMap(other, poses, {links.begin(), links.end()});
+	std::map<uint64_t, uint64_t> original;
+	for (const auto& [b, here] : added.localMapIds) original[here] = b;
 	for (const auto& fin : added.localMaps)
-		loopDetector_->index(*mapManager_->map().data(fin.localMap), fin.imageDescriptors);
+		if (!inB || inB->count(original.at(fin.localMap)))
+			loopDetector_->index(*mapManager_->map().localMaps.at(fin.localMap), fin.imageDescriptors);
 	rep.sessions = mapManager_->map().sessions;
 	rep.keyframes = mapManager_->map().keyframes.size();
 	return rep;

@@ -291,6 +291,31 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	return out;
 }
 
+std::optional<std::set<uint64_t>> BowLoopDetector::indexedIn(const Map& map) const
+{
+	if (map.placeIndex.empty() || map.placeIndexClass != GetRuntimeClass()->className) return std::nullopt;
+	mrpt::io::CMemoryStream buf;
+	buf.assignMemoryNotOwn(map.placeIndex.data(), map.placeIndex.size());
+	auto a = mrpt::serialization::archiveFrom(buf);
+	uint8_t version = 0;
+	a >> version;
+	if (version != 0) return std::nullopt;
+	bow::Vocabulary v;
+	bow::Database db;
+	a >> v >> db;
+	uint64_t n = 0;
+	a >> n;
+	std::set<uint64_t> out;
+	for (uint64_t i = 0; i < n; i++)
+	{
+		uint32_t e = 0;
+		uint64_t lm = 0;
+		a >> e >> lm;
+		out.insert(lm);
+	}
+	return out;
+}
+
 bool BowLoopDetector::indexes(uint64_t localMap) const
 {
 	for (const auto& [e, lm] : entryMap_)

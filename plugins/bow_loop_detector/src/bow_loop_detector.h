@@ -36,6 +36,7 @@ class BowLoopDetector : public LoopDetector
 		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe) override;
 	bool forget(uint64_t localMap) override;
 	bool indexes(uint64_t localMap) const override;
+	std::optional<std::set<uint64_t>> indexedIn(const Map& map) const override;
 	void replaced(uint64_t older, const LocalMap& newer) override;
 	std::vector<uint8_t> savePlaceIndex() override;
 	void loadPlaceIndex(const Map& map) override;

@@ -249,6 +249,9 @@ class LoopDetector : public Plugin
 		(void)query, (void)map, (void)poses, (void)onlyKeyframe;
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot locate local maps");
 	}
+	/** The local maps the place index saved with `map` has entries for (a local map replaced
+	 *  on a revisit has none); nullopt when this detector cannot read that index. */
+	virtual std::optional<std::set<uint64_t>> indexedIn(const Map& /*map*/) const { return std::nullopt; }
 	/** Whether the place index has an entry for the local map. */
 	virtual bool indexes(uint64_t /*localMap*/) const { return false; }
 	/** A local map leaves the place index now (pruned). Returns whether it was there. */
