@@ -27,7 +27,8 @@ double rssMb()
 	std::ifstream f("/proc/self/status");
 	std::string line;
 	while (std::getline(f, line))
-		if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+		if (line.rfind("VmRSS:", 0) == 0)
+			return std::stod(line.substr(6)) / 1024.0;
 	return -1;
 }
 std::uintmax_t bytesIn(const fs::path& dir)
@@ -35,7 +36,8 @@ std::uintmax_t bytesIn(const fs::path& dir)
 	std::uintmax_t n = 0;
 	std::error_code ec;
 	for (const auto& e : fs::recursive_directory_iterator(dir, ec))
-		if (e.is_regular_file(ec)) n += e.file_size(ec);
+		if (e.is_regular_file(ec))
+			n += e.file_size(ec);
 	return n;
 }
 }  // namespace
@@ -51,12 +53,15 @@ int main(int argc, char** argv)
 		else
 		{
 			std::fprintf(
-				stderr, "usage: rasterslam-bench-map-store [--local-maps N (1000)] [--points P (8000)]\n");
+			    stderr,
+			    "usage: rasterslam-bench-map-store [--local-maps N (1000)] [--points P (8000)]\n");
 			return a == "-h" || a == "--help" ? 0 : 2;
 		}
 	}
-	if (maps < 1 || points < 1) return 2;
-	const fs::path dir = fs::temp_directory_path() / ("rasterslam-bench-map-store-" + std::to_string(::getpid()));
+	if (maps < 1 || points < 1)
+		return 2;
+	const fs::path dir =
+	    fs::temp_directory_path() / ("rasterslam-bench-map-store-" + std::to_string(::getpid()));
 	std::mt19937 rng(3);
 	std::uniform_real_distribution<float> u(-40, 40);
 
@@ -70,7 +75,8 @@ int main(int argc, char** argv)
 		for (uint64_t k = 4 * i; k <= 4 * i + 4; k++)
 		{
 			lm->keyframes.push_back(k);
-			if (m.keyframes.count(k)) continue;
+			if (m.keyframes.count(k))
+				continue;
 			auto kf = std::make_shared<Keyframe>();
 			kf->id = k;
 			kf->stamp = static_cast<double>(k);
@@ -83,13 +89,16 @@ int main(int argc, char** argv)
 		for (std::size_t p = 0; p < points; p++)
 		{
 			lm->xyz.insert(lm->xyz.end(), {u(rng), u(rng), u(rng) / 8});
-			for (int b = 0; b < 32; b++) lm->descriptors.push_back(static_cast<uint8_t>(rng()));
+			for (int b = 0; b < 32; b++)
+				lm->descriptors.push_back(static_cast<uint8_t>(rng()));
 			lm->observers.push_back(1u << (rng() % 5));
 		}
 		lm->imagePng.resize(25000);  // a 600 x 600 image compresses to about this
-		for (auto& b : lm->imagePng) b = static_cast<uint8_t>(rng());
+		for (auto& b : lm->imagePng)
+			b = static_cast<uint8_t>(rng());
 		m.localMaps[i] = lm;
-		if (i) m.graph.add(i - 1, i, LocalMapGraph::EdgeKind::Sequential, lm->createdStamp);
+		if (i)
+			m.graph.add(i - 1, i, LocalMapGraph::EdgeKind::Sequential, lm->createdStamp);
 	}
 	PoseView poses;
 	poses.prior = &m.priorPoses;
@@ -113,18 +122,20 @@ int main(int argc, char** argv)
 		const double save2 = seconds(t0);
 		t0 = std::chrono::steady_clock::now();
 		std::size_t read = 0;
-		for (const auto& [id, lm] : back.localMaps) read += back.data(id)->points();
+		for (const auto& [id, lm] : back.localMaps)
+			read += back.data(id)->points();
 		const double readAll = seconds(t0);
 		std::printf(
-			"local maps            : %zu of %zu points (%zu keyframes)\n"
-			"on disk               : %.1f MB (index map.rsmap %.2f MB)\n"
-			"save, new folder      : %.2f s\n"
-			"load (index)          : %.3f s, %.1f MB more resident memory\n"
-			"save over itself      : %.3f s (index only: no local map written again)\n"
-			"read every local map  : %.2f s (%.2f ms each, checksum verified)\n",
-			maps, points, m.keyframes.size(), disk / 1e6, index / 1e6, save1, load, rssLoaded, save2, readAll,
-			1e3 * readAll / static_cast<double>(maps));
-		if (read != maps * points) rc = 1;
+		    "local maps            : %zu of %zu points (%zu keyframes)\n"
+		    "on disk               : %.1f MB (index map.rsmap %.2f MB)\n"
+		    "save, new folder      : %.2f s\n"
+		    "load (index)          : %.3f s, %.1f MB more resident memory\n"
+		    "save over itself      : %.3f s (index only: no local map written again)\n"
+		    "read every local map  : %.2f s (%.2f ms each, checksum verified)\n",
+		    maps, points, m.keyframes.size(), disk / 1e6, index / 1e6, save1, load, rssLoaded,
+		    save2, readAll, 1e3 * readAll / static_cast<double>(maps));
+		if (read != maps * points)
+			rc = 1;
 	}
 	catch (const std::exception& e)
 	{

@@ -1,13 +1,13 @@
-// `rasterslam map merge` and `map prune`. Merge: two maps built separately become one (paper, "Map Management":
-// sessions that land in one map). The loaded map stays where it is; the other is located in
-// it local map by local map, and only a transform that several of them agree on is used.
+// `rasterslam map merge` and `map prune`. Merge: two maps built separately become one (paper, "Map
+// Management": sessions that land in one map). The loaded map stays where it is; the other is
+// located in it local map by local map, and only a transform that several of them agree on is used.
 #include <rasterslam/core/engine.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
-#include <tuple>
 #include <set>
 #include <stdexcept>
+#include <tuple>
 
 namespace rasterslam
 {
@@ -22,10 +22,12 @@ double angleDeg(const mrpt::poses::CPose3D& d)
 MergeReport Engine::mergeMap(const std::string& dir)
 {
 	if (!mapManager_ || !loopDetector_ || !optimizer_)
-		throw ConfigError(source_ + ": merging maps needs a map_manager, a loop_detector and an optimizer");
+		throw ConfigError(source_ +
+		                  ": merging maps needs a map_manager, a loop_detector and an optimizer");
 	const Map other = rasterslam::loadMap(dir);
 	const Map& map = mapManager_->map();
-	if (map.localMaps.empty()) throw std::runtime_error("the first map has no local maps");
+	if (map.localMaps.empty())
+		throw std::runtime_error("the first map has no local maps");
 	MergeReport rep;
 	rep.localMaps = other.localMaps.size();
 	PoseView here;
@@ -36,7 +38,7 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	// map still gives several independent hits.
 	struct Hit
 	{
-		uint64_t theirs = 0;  //!< local map of the other map
+		uint64_t theirs = 0;    //!< local map of the other map
 		uint64_t keyframe = 0;  //!< keyframe of the other map
 		RelocalizationResult rl;
 		mrpt::poses::CPose3D T_this_other;
@@ -49,13 +51,16 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		const auto anchorPose = other.priorPoses.at(lm->anchor());
 		for (std::size_t k = 0; k < lm->keyframes.size(); k++)
 		{
-			if (!tried.insert(lm->keyframes[k]).second) continue;  // shared with the previous local map
+			if (!tried.insert(lm->keyframes[k]).second)
+				continue;  // shared with the previous local map
 			const auto rl = loopDetector_->locate(*lm, map, here, static_cast<int>(k));
-			if (!rl.found) continue;
-			hits.push_back({id, lm->keyframes[k], rl, rl.pose + (mrpt::poses::CPose3D() - anchorPose)});
-			MRPT_LOG_DEBUG_STREAM(
-				"keyframe " << lm->keyframes[k] << " of " << dir << " found at local map " << rl.localMap << " ("
-							<< rl.inliers << " inliers)");
+			if (!rl.found)
+				continue;
+			hits.push_back(
+			    {id, lm->keyframes[k], rl, rl.pose + (mrpt::poses::CPose3D() - anchorPose)});
+			MRPT_LOG_DEBUG_STREAM("keyframe " << lm->keyframes[k] << " of " << dir
+			                                  << " found at local map " << rl.localMap << " ("
+			                                  << rl.inliers << " inliers)");
 		}
 	}
 	rep.keyframesTried = tried.size();
@@ -70,17 +75,19 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		{
 			const auto at = other.priorPoses.at(hits[j].keyframe);
 			const auto d = (hits[i].T_this_other + at) - (hits[j].T_this_other + at);
-			if (d.norm() < anchorAgree_m_ && angleDeg(d) < anchorAgree_deg_) agree.push_back(j);
+			if (d.norm() < anchorAgree_m_ && angleDeg(d) < anchorAgree_deg_)
+				agree.push_back(j);
 		}
-		if (agree.size() > best.size()) best = agree;
+		if (agree.size() > best.size())
+			best = agree;
 	}
 	rep.agreeing = best.size();
 	if (best.size() < static_cast<std::size_t>(anchorMinAgreeing_))
 		throw std::runtime_error(
-			"no overlap found between the maps: " + std::to_string(hits.size()) + " of " +
-			std::to_string(tried.size()) + " keyframes of '" + dir + "' were located, " +
-			std::to_string(best.size()) + " agree on one place, " + std::to_string(anchorMinAgreeing_) +
-			" needed (engine.anchor_min_agreeing)");
+		    "no overlap found between the maps: " + std::to_string(hits.size()) + " of " +
+		    std::to_string(tried.size()) + " keyframes of '" + dir + "' were located, " +
+		    std::to_string(best.size()) + " agree on one place, " +
+		    std::to_string(anchorMinAgreeing_) + " needed (engine.anchor_min_agreeing)");
 	rep.T_this_other = hits[best.front()].T_this_other;
 
 	// The pose graph: the loaded map's keyframes that a hit names (fixed), the other map's
@@ -90,7 +97,8 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	const uint64_t offset = map.nextKeyframeId();
 	std::set<mrpt::graphs::TNodeID> fixed;
 	EdgeSet uncertain;
-	for (const auto& [id, p] : other.priorPoses) g.nodes[offset + id] = rep.T_this_other + p;
+	for (const auto& [id, p] : other.priorPoses)
+		g.nodes[offset + id] = rep.T_this_other + p;
 	mrpt::math::CMatrixDouble66 seqInfo;
 	seqInfo.setZero();
 	for (int i = 0; i < 3; i++)
@@ -102,10 +110,9 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	for (const auto& [id, k] : other.keyframes)
 	{
 		if (prev)
-			g.insertEdge(
-				offset + *prev, offset + id,
-				mrpt::poses::CPose3DPDFGaussianInf(
-					other.priorPoses.at(id) - other.priorPoses.at(*prev), seqInfo));
+			g.insertEdge(offset + *prev, offset + id,
+			             mrpt::poses::CPose3DPDFGaussianInf(
+			                 other.priorPoses.at(id) - other.priorPoses.at(*prev), seqInfo));
 		prev = id;
 	}
 	std::set<std::pair<uint64_t, uint64_t>> links;
@@ -119,9 +126,10 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		info *= 100;
 		// The hit placed the local map's anchor; the edge goes to the keyframe it was made from.
 		const auto anchor = other.localMaps.at(h.theirs)->anchor();
-		const auto T_this_kf = h.rl.pose + (other.priorPoses.at(h.keyframe) - other.priorPoses.at(anchor));
-		g.insertEdge(
-			h.rl.keyframe, offset + h.keyframe, mrpt::poses::CPose3DPDFGaussianInf(T_this_kf - h.rl.keyframePose, info));
+		const auto T_this_kf =
+		    h.rl.pose + (other.priorPoses.at(h.keyframe) - other.priorPoses.at(anchor));
+		g.insertEdge(h.rl.keyframe, offset + h.keyframe,
+		             mrpt::poses::CPose3DPDFGaussianInf(T_this_kf - h.rl.keyframePose, info));
 		uncertain.insert({h.rl.keyframe, offset + h.keyframe});
 		links.emplace(h.rl.localMap, h.theirs);
 	}
@@ -132,7 +140,8 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	for (const auto& [id, p] : other.priorPoses)
 	{
 		poses[id] = g.nodes.at(offset + id);
-		rep.maxCorrection_m = std::max(rep.maxCorrection_m, poses[id].distanceTo(before.at(offset + id)));
+		rep.maxCorrection_m =
+		    std::max(rep.maxCorrection_m, poses[id].distanceTo(before.at(offset + id)));
 	}
 
 	// B's local maps enter the place index, but not those B had itself retired (replaced on
@@ -140,10 +149,12 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	const auto inB = loopDetector_->indexedIn(other);
 	const auto added = mapManager_->addMap(other, poses, {links.begin(), links.end()});
 	std::map<uint64_t, uint64_t> original;
-	for (const auto& [b, here] : added.localMapIds) original[here] = b;
+	for (const auto& [b, here] : added.localMapIds)
+		original[here] = b;
 	for (const auto& fin : added.localMaps)
 		if (!inB || inB->count(original.at(fin.localMap)))
-			loopDetector_->index(*mapManager_->map().localMaps.at(fin.localMap), fin.imageDescriptors);
+			loopDetector_->index(*mapManager_->map().localMaps.at(fin.localMap),
+			                     fin.imageDescriptors);
 	rep.sessions = mapManager_->map().sessions;
 	rep.keyframes = mapManager_->map().keyframes.size();
 	return rep;
@@ -151,27 +162,33 @@ MergeReport Engine::mergeMap(const std::string& dir)
 
 PruneReport Engine::pruneMap(const PruneOptions& opts)
 {
-	if (!mapManager_) throw ConfigError(source_ + ": pruning a map needs a map_manager");
+	if (!mapManager_)
+		throw ConfigError(source_ + ": pruning a map needs a map_manager");
 	const Map& map = mapManager_->map();
 	if (!map.placeIndex.empty() && !loopDetector_)
-		throw ConfigError(
-			source_ + ": the map has a place index and the config no loop_detector to keep it up to date: use the "
-					  "config the map was made with (e.g. slam.yaml)");
+		throw ConfigError(source_ +
+		                  ": the map has a place index and the config no loop_detector to keep it "
+		                  "up to date: use the "
+		                  "config the map was made with (e.g. slam.yaml)");
 	PruneReport rep;
 	rep.localMaps = map.localMaps.size();
 	// Newest first: a session made later (its record's time; a merged map's sessions keep
 	// theirs, whatever their ids), then a later update.
-	auto made = [&](uint32_t s) {
+	auto made = [&](uint32_t s)
+	{
 		const auto it = map.sessionRecords.find(s);
 		return it == map.sessionRecords.end() ? std::string() : it->second.startedAt;
 	};
 	std::vector<uint64_t> ids;
-	for (const auto& [id, lm] : map.localMaps) ids.push_back(id);
-	std::sort(ids.begin(), ids.end(), [&](uint64_t a, uint64_t b) {
-		const auto &x = *map.localMaps.at(a), &y = *map.localMaps.at(b);
-		return std::make_tuple(made(x.session), x.session, x.updatedStamp, x.id) >
-			   std::make_tuple(made(y.session), y.session, y.updatedStamp, y.id);
-	});
+	for (const auto& [id, lm] : map.localMaps)
+		ids.push_back(id);
+	std::sort(ids.begin(), ids.end(),
+	          [&](uint64_t a, uint64_t b)
+	          {
+		          const auto &x = *map.localMaps.at(a), &y = *map.localMaps.at(b);
+		          return std::make_tuple(made(x.session), x.session, x.updatedStamp, x.id) >
+		                 std::make_tuple(made(y.session), y.session, y.updatedStamp, y.id);
+	          });
 	// A place: local maps whose anchors lie within place_radius_m of each other. Going from
 	// the newest, a local map is surplus where `keepPerPlace` kept ones are that near already.
 	std::vector<std::pair<uint64_t, mrpt::poses::CPose3D>> kept;
@@ -181,19 +198,23 @@ PruneReport Engine::pruneMap(const PruneOptions& opts)
 		const auto& lm = *map.localMaps.at(id);
 		const auto at = map.priorPoses.at(lm.anchor());
 		std::size_t near = 0;
-		for (const auto& [k, p] : kept) near += p.distanceTo(at) < opts.placeRadius_m;
-		if (near == 0) ++rep.places;
+		for (const auto& [k, p] : kept)
+			near += p.distanceTo(at) < opts.placeRadius_m;
+		if (near == 0)
+			++rep.places;
 		const bool old = opts.before && lm.updatedStamp < *opts.before;
 		const bool surplus = opts.keepPerPlace && near >= *opts.keepPerPlace;
 		const bool eligible = !map.onlineWhenSaved.count(id) && (opts.before || opts.keepPerPlace);
-		if (eligible && (old || !opts.before) && (surplus || !opts.keepPerPlace)) drop.insert(id);
+		if (eligible && (old || !opts.before) && (surplus || !opts.keepPerPlace))
+			drop.insert(id);
 		else
 			kept.emplace_back(id, at);
 	}
 	if (!drop.empty() && drop.size() == map.localMaps.size())
 		throw std::runtime_error("every local map of the map would be dropped: nothing is changed");
 	rep.dropped.assign(drop.begin(), drop.end());
-	if (opts.dryRun || drop.empty()) return rep;
+	if (opts.dryRun || drop.empty())
+		return rep;
 	// Kept local maps that a dropped one replaced on a revisit: their place-index entry had
 	// gone to it, so they take it back (from their image), or the place could not be found.
 	std::set<uint64_t> replacedByDropped;
@@ -201,13 +222,15 @@ PruneReport Engine::pruneMap(const PruneOptions& opts)
 		if (e.kind == LocalMapGraph::EdgeKind::Loop && drop.count(e.to) && !drop.count(e.from))
 			replacedByDropped.insert(e.from);
 	for (const auto id : drop)
-		if (loopDetector_) loopDetector_->forget(id);
+		if (loopDetector_)
+			loopDetector_->forget(id);
 	rep.keyframesDropped = mapManager_->removeLocalMaps(drop);
 	if (loopDetector_)
 		for (const auto id : replacedByDropped)
 			if (!loopDetector_->indexes(id))
 			{
-				loopDetector_->index(*mapManager_->map().localMaps.at(id), mapManager_->imageDescriptors(id));
+				loopDetector_->index(*mapManager_->map().localMaps.at(id),
+				                     mapManager_->imageDescriptors(id));
 				++rep.reindexed;
 			}
 	return rep;
