@@ -395,6 +395,7 @@ TEST(Mapping, ASessionIsAnchoredOnlyWhenSeveralHitsAgree)
 		std::ifstream in(p);
 		std::string y((std::istreambuf_iterator<char>(in)), {});
 		y = std::regex_replace(y, std::regex("min_inliers: 25 "), "min_inliers: 8 ");
+		y = std::regex_replace(y, std::regex("relocalization_min_inliers: 18 "), "relocalization_min_inliers: 8 ");
 		const auto out = dir / ("lax" + std::to_string(agreeing) + ".yaml");
 		std::ofstream(out) << y;
 		return out;

@@ -34,6 +34,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	ransac_.inlierThreshold_m = p.getDouble("ransac_threshold_m", 0.4);
 	ransac_.minInliers = p.getInt("min_inliers", 25);
 	ransac_.maxIterations = p.getInt("ransac_max_iterations", 1000);
+	relocMinInliers_ = p.getInt("relocalization_min_inliers", relocMinInliers_);
+	if (relocMinInliers_ < 3) throw ConfigError(p.context() + ".relocalization_min_inliers: must be >= 3");
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
 	if (onlineMinMaps_ < 2) throw ConfigError(p.context() + ".online_min_maps: must be >= 2");
 	if (maxCandidates_ < 1) throw ConfigError(p.context() + ".max_candidates: must be >= 1");
@@ -131,7 +133,7 @@ cv::Mat descriptorMat(const std::vector<uint8_t>& bytes)
 }  // namespace
 
 features::RigidResult BowLoopDetector::verify(
-	const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe) const
+	const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe, int minInliers) const
 {
 	features::RigidResult fit;
 	const std::size_t n = lm.points();
@@ -157,7 +159,9 @@ features::RigidResult BowLoopDetector::verify(
 		p.push_back(q.pts[static_cast<std::size_t>(mt.a)]);
 		m.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
 	}
-	fit = features::ransacRigid(p, m, ransac_, seed);
+	auto params = ransac_;
+	if (minInliers > 0) params.minInliers = minInliers;
+	fit = features::ransacRigid(p, m, params, seed);
 	for (auto& i : fit.inliers) i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
 	return fit;
 }

@@ -58,7 +58,8 @@ class BowLoopDetector : public LoopDetector
 	 *  `onlyKeyframe` when >= 0) and fits the rigid transform with RANSAC. */
 	/** The fit's T maps the query frame into the local map's anchor frame; its inliers are
 	 *  query feature indices. */
-	features::RigidResult verify(const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe = -1) const;
+	features::RigidResult verify(
+		const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe = -1, int minInliers = -1) const;
 	/** The keyframe of `lm` nearest to a pose given in the anchor's frame: the one a
 	 *  constraint to that pose is shortest from. */
 	static uint64_t nearestKeyframe(const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose, const PoseView& poses);
@@ -95,6 +96,10 @@ class BowLoopDetector : public LoopDetector
 	int maxCandidates_ = 5, maxResults_ = 20;
 	features::MatchParams match_;
 	features::RansacParams ransac_;
+	/** Inliers a relocalization (no pose prior) needs: fewer than a loop's, because one hit
+	 *  decides nothing (a session is anchored by several agreeing ones) and another sensor's
+	 *  scans match a map with fewer. */
+	int relocMinInliers_ = 18;
 	double pointSigma_m_ = 0.2;
 
 	// state: the place index only

@@ -26,7 +26,7 @@ RelocalizationResult BowLoopDetector::relocalize(
 		q.pts.emplace_back(p.x, p.y, p.z);
 		q.desc.push_back(all.row(i));
 	}
-	if (q.pts.size() < static_cast<std::size_t>(ransac_.minInliers))
+	if (q.pts.size() < static_cast<std::size_t>(relocMinInliers_))
 	{
 		res.reason = "features";
 		return res;
@@ -52,7 +52,7 @@ RelocalizationResult BowLoopDetector::locate(
 			q.pts.emplace_back(query.xyz[3 * i], query.xyz[3 * i + 1], query.xyz[3 * i + 2]);
 			q.desc.push_back(cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&query.descriptors[32 * i])));
 		}
-	if (q.pts.size() < static_cast<std::size_t>(ransac_.minInliers))
+	if (q.pts.size() < static_cast<std::size_t>(relocMinInliers_))
 	{
 		res.reason = "features";
 		return res;
@@ -79,7 +79,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		const auto data = candidate(map, it->first);  // offline: read from the store
 		if (!data) continue;
 		const auto& lm = *data;
-		const auto fit = verify(q, lm, static_cast<uint32_t>(seed + lm.id));
+		const auto fit = verify(q, lm, static_cast<uint32_t>(seed + lm.id), -1, relocMinInliers_);
 		if (fit.ok && fit.inliers.size() > res.inliers)
 		{
 			const uint64_t kf = nearestKeyframe(lm, fit.T, poses);
