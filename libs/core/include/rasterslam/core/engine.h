@@ -194,7 +194,7 @@ class Engine : public mrpt::system::COutputLogger
 	bool optimizeOnlineWindow_ = true;
 	double testCorruptLoops_ = 0;
 	int anchorMinAgreeing_ = 3;
-	double anchorAgree_m_ = 1.0, anchorAgree_deg_ = 3.0;
+	double anchorAgree_m_ = 2.0, anchorAgree_deg_ = 5.0;
 	bool anchorEveryScan_ = true;
 	double anchorHitSpacing_s_ = 1.0;
 };
