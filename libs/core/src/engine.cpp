@@ -251,6 +251,12 @@ mrpt::graphs::CNetworkOfPoses3DInf::edge_t Engine::rawlogOdometryEdge(const mrpt
 	return e;
 }
 
+bool Engine::anchorsAgree(const mrpt::poses::CPose3D& d) const
+{
+	const double angleDeg = Eigen::AngleAxisd(d.getRotationMatrix().asEigen()).angle() * 180 / M_PI;
+	return d.norm() < anchorAgree_m_ && angleDeg < anchorAgree_deg_;
+}
+
 RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 {
 	RunResult res;
@@ -453,10 +459,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				{
 					// Compared where the vehicle is now: a heading difference then counts as the
 					// offset it makes here, not at the session's origin.
-					const auto d = (h + currPose) - rl.pose;
-					const double angle =
-						Eigen::AngleAxisd(d.getRotationMatrix().asEigen()).angle() * 180 / M_PI;
-					agreeing += d.norm() < anchorAgree_m_ && angle < anchorAgree_deg_;
+					agreeing += anchorsAgree((h + currPose) - rl.pose);
 				}
 				res.anchorHits = anchorHits.size();
 				if (agreeing >= static_cast<std::size_t>(anchorMinAgreeing_))

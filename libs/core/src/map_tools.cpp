@@ -3,7 +3,6 @@
 // located in it local map by local map, and only a transform that several of them agree on is used.
 #include <rasterslam/core/engine.h>
 
-#include <Eigen/Geometry>
 #include <cmath>
 #include <set>
 #include <stdexcept>
@@ -11,14 +10,6 @@
 
 namespace rasterslam
 {
-namespace
-{
-double angleDeg(const mrpt::poses::CPose3D& d)
-{
-	return Eigen::AngleAxisd(d.getRotationMatrix().asEigen()).angle() * 180 / M_PI;
-}
-}  // namespace
-
 MergeReport Engine::mergeMap(const std::string& dir)
 {
 	if (!mapManager_ || !loopDetector_ || !optimizer_)
@@ -75,7 +66,7 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		{
 			const auto at = other.priorPoses.at(hits[j].keyframe);
 			const auto d = (hits[i].T_this_other + at) - (hits[j].T_this_other + at);
-			if (d.norm() < anchorAgree_m_ && angleDeg(d) < anchorAgree_deg_)
+			if (anchorsAgree(d))
 				agree.push_back(j);
 		}
 		if (agree.size() > best.size())

@@ -295,28 +295,43 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	return out;
 }
 
-std::optional<std::set<uint64_t>> BowLoopDetector::indexedIn(const Map& map) const
+namespace
 {
-	if (map.placeIndex.empty() || map.placeIndexClass != GetRuntimeClass()->className) return std::nullopt;
+/** What savePlaceIndex() writes: version, vocabulary, database, entry -> local map. */
+struct PlaceIndexContents
+{
+	std::shared_ptr<bow::Vocabulary> vocab = std::make_shared<bow::Vocabulary>();
+	bow::Database db;
+	std::map<bow::Database::EntryId, uint64_t> entries;
+};
+PlaceIndexContents readPlaceIndex(const std::vector<uint8_t>& bytes)
+{
 	mrpt::io::CMemoryStream buf;
-	buf.assignMemoryNotOwn(map.placeIndex.data(), map.placeIndex.size());
+	buf.assignMemoryNotOwn(bytes.data(), bytes.size());
 	auto a = mrpt::serialization::archiveFrom(buf);
 	uint8_t version = 0;
 	a >> version;
-	if (version != 0) return std::nullopt;
-	bow::Vocabulary v;
-	bow::Database db;
-	a >> v >> db;
+	if (version != 0) throw std::runtime_error("unknown place index version " + std::to_string(version));
+	PlaceIndexContents c;
+	a >> *c.vocab >> c.db;
 	uint64_t n = 0;
 	a >> n;
-	std::set<uint64_t> out;
 	for (uint64_t i = 0; i < n; i++)
 	{
 		uint32_t e = 0;
 		uint64_t lm = 0;
 		a >> e >> lm;
-		out.insert(lm);
+		c.entries[e] = lm;
 	}
+	return c;
+}
+}  // namespace
+
+std::optional<std::set<uint64_t>> BowLoopDetector::indexedIn(const Map& map) const
+{
+	if (map.placeIndex.empty() || map.placeIndexClass != GetRuntimeClass()->className) return std::nullopt;
+	std::set<uint64_t> out;
+	for (const auto& [e, lm] : readPlaceIndex(map.placeIndex).entries) out.insert(lm);
 	return out;
 }
 
@@ -387,31 +402,19 @@ void BowLoopDetector::loadPlaceIndex(const Map& map)
 		throw std::runtime_error("the map has no place index (it was saved without a loop detector)");
 	if (map.placeIndexClass != mine)
 		throw std::runtime_error("the map's place index was written by " + map.placeIndexClass + ", not " + mine);
-	mrpt::io::CMemoryStream buf;
-	buf.assignMemoryNotOwn(map.placeIndex.data(), map.placeIndex.size());
-	auto a = mrpt::serialization::archiveFrom(buf);
-	uint8_t version = 0;
-	a >> version;
-	if (version != 0) throw std::runtime_error("unknown place index version " + std::to_string(version));
-	auto v = std::make_shared<bow::Vocabulary>();
-	a >> *v >> db_;
-	vocab_ = v;
-	uint64_t n = 0;
-	a >> n;
-	entryMap_.clear();
-	for (uint64_t i = 0; i < n; i++)
+	auto c = readPlaceIndex(map.placeIndex);
+	for (const auto& [e, lm] : c.entries)
 	{
-		uint32_t e = 0;
-		uint64_t lm = 0;
-		a >> e >> lm;
-		if (!db_.contains(e)) throw std::runtime_error("the place index refers to a missing database entry");
+		if (!c.db.contains(e)) throw std::runtime_error("the place index refers to a missing database entry");
 		if (!map.localMaps.count(lm)) throw std::runtime_error("the place index refers to a missing local map");
-		entryMap_[e] = lm;
 	}
-	if (entryMap_.size() != db_.size())
+	if (c.entries.size() != c.db.size())
 		throw std::runtime_error(
-			"the place index has " + std::to_string(db_.size()) + " entries and " + std::to_string(entryMap_.size()) +
+			"the place index has " + std::to_string(c.db.size()) + " entries and " + std::to_string(c.entries.size()) +
 			" of them name a local map");
+	vocab_ = c.vocab;
+	db_ = std::move(c.db);
+	entryMap_ = std::move(c.entries);
 	trainingImages_.clear();
 	prevBow_.reset();
 	online_ = false;  // the map's vocabulary stays

@@ -53,7 +53,9 @@ class LocalMapManager : public MapManager
 	/** Moves a local map to the offline store, leaving a stub with its labels. */
 	void goOffline(uint64_t localMap, const char* why);
 	LocalMapStore& store();
-	/** ORB descriptors of a local map's image (as finishOpen computed them). */
+	/** ORB descriptors (32 bytes each) of a local-map image, for the place index. */
+	std::vector<uint8_t> wordsOfImage(const cv::Mat& image);
+	/** The same from a local map's stored PNG. */
 	std::vector<uint8_t> wordsOf(const LocalMap& lm);
 
 	// parameters
@@ -392,12 +394,9 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	}
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
-	std::vector<cv::KeyPoint> kps;
-	cv::Mat desc;
-	orb_->extract(img.image.asCvMatRef(), kps, desc);
 	MappingUpdate::Finished fin;
 	fin.localMap = lm->id;
-	if (desc.rows > 0) fin.imageDescriptors.assign(desc.datastart, desc.dataend);
+	fin.imageDescriptors = wordsOfImage(img.image.asCvMatRef());
 	if (!cv::imencode(".png", img.image.asCvMatRef(), lm->imagePng))
 		throw std::runtime_error("cannot encode the image of local map " + std::to_string(lm->id));
 	lm->imageResolution_m = static_cast<float>(mapRaster_.resolution_m);
@@ -542,17 +541,21 @@ MapManager::Added LocalMapManager::addMap(
 	return out;
 }
 
-std::vector<uint8_t> LocalMapManager::wordsOf(const LocalMap& lm)
+std::vector<uint8_t> LocalMapManager::wordsOfImage(const cv::Mat& image)
 {
-	std::vector<uint8_t> out;
-	if (lm.imagePng.empty()) return out;
-	const cv::Mat img = cv::imdecode(lm.imagePng, cv::IMREAD_GRAYSCALE);
-	if (img.empty()) throw std::runtime_error("the image of local map " + std::to_string(lm.id) + " cannot be decoded");
 	std::vector<cv::KeyPoint> kps;
 	cv::Mat desc;
-	orb_->extract(img, kps, desc);
-	if (desc.rows > 0) out.assign(desc.datastart, desc.dataend);
-	return out;
+	orb_->extract(image, kps, desc);
+	return desc.rows > 0 ? std::vector<uint8_t>(desc.datastart, desc.dataend) : std::vector<uint8_t>{};
+}
+
+std::vector<uint8_t> LocalMapManager::wordsOf(const LocalMap& lm)
+{
+	if (lm.imagePng.empty()) return {};
+	// The image is kept losslessly: its words are those the local map had when it was made.
+	const cv::Mat img = cv::imdecode(lm.imagePng, cv::IMREAD_GRAYSCALE);
+	if (img.empty()) throw std::runtime_error("the image of local map " + std::to_string(lm.id) + " cannot be decoded");
+	return wordsOfImage(img);
 }
 
 std::vector<uint8_t> LocalMapManager::imageDescriptors(uint64_t localMap) { return wordsOf(*map_.data(localMap)); }

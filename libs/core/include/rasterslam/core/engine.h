@@ -169,6 +169,9 @@ class Engine : public mrpt::system::COutputLogger
 	const mrpt::containers::yaml& configInForce() const { return inForce_; }
 
    private:
+	/** Two anchorings agree: their difference `d` (where the vehicle is) is within
+	 *  engine.anchor_agree_m and anchor_agree_deg. */
+	bool anchorsAgree(const mrpt::poses::CPose3D& d) const;
 	mrpt::graphs::CNetworkOfPoses3DInf::edge_t rawlogOdometryEdge(const mrpt::poses::CPose3DPDFGaussian& odo) const;
 	Plugin::Ptr makeRole(
 		const mrpt::containers::yaml& cfg, const std::string& section,
