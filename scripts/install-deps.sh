@@ -13,6 +13,8 @@ PKGS=(
   libgtest-dev libgmock-dev
   zlib1g-dev
   libceres-dev
+  libcli11-dev nlohmann-json3-dev
+  clang-format-14
 )
 
 if [ "${RASTERSLAM_SKIP_DEPS:-0}" = "1" ]; then

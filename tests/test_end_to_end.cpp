@@ -16,7 +16,10 @@ namespace fs = std::filesystem;
 
 namespace
 {
-std::string gicpConfig() { return test::sourcePath("share/rasterslam/config/gicp-baseline.yaml"); }
+std::string gicpConfig()
+{
+	return test::sourcePath("share/rasterslam/config/gicp-baseline.yaml");
+}
 
 double jsonNumber(const std::string& json, const std::string& key)
 {
@@ -31,7 +34,8 @@ std::size_t lineCount(const fs::path& p)
 	std::ifstream f(p);
 	std::size_t n = 0;
 	std::string l;
-	while (std::getline(f, l)) ++n;
+	while (std::getline(f, l))
+		++n;
 	return n;
 }
 
@@ -47,8 +51,10 @@ std::string syntheticRawlog(const fs::path& dir, const std::string& bad)
 		Scan s;
 		s.stamp = 50 + 0.1 * k;
 		if (!(k == 2 && bad == "empty"))
-			for (int i = 0; i < 3000; i++) s.points.push_back({u(rng), u(rng), u(rng) * 0.1f, 0});
-		if (k == 2 && bad == "nan") s.points[10].y = std::nanf("");
+			for (int i = 0; i < 3000; i++)
+				s.points.push_back({u(rng), u(rng), u(rng) * 0.1f, 0});
+		if (k == 2 && bad == "nan")
+			s.points[10].y = std::nanf("");
 		w.writeScan(s);
 	}
 	w.close();
@@ -58,13 +64,17 @@ std::string syntheticRawlog(const fs::path& dir, const std::string& bad)
 /** The first 50 KITTI scans as a rawlog, made once for the whole test program. */
 std::string kitti50()
 {
-	static const std::string path = [] {
+	static const std::string path = []
+	{
 		const auto D = test::sharedData("kitti00-0000-0100");
-		const auto p = (fs::temp_directory_path() / ("rasterslam-e2e-kitti50-" + std::to_string(::getpid()) + ".rawlog")).string();
+		const auto p = (fs::temp_directory_path() /
+		                ("rasterslam-e2e-kitti50-" + std::to_string(::getpid()) + ".rawlog"))
+		                   .string();
 		test::removeAtExit(p);
-		const auto r = test::runCommand(
-			test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D +
-			"/poses_semantickitti.txt --calib " + D + "/calib.txt --times " + D + "/times.txt --last 49 -o " + p);
+		const auto r =
+		    test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " +
+		                     D + "/poses_semantickitti.txt --calib " + D + "/calib.txt --times " +
+		                     D + "/times.txt --last 49 -o " + p);
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		return p;
 	}();
@@ -77,22 +87,26 @@ TEST(EndToEnd, GicpBaselineOnFiftyKittiScans)
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto D = test::sharedData("kitti00-0000-0100");
 	const auto out = test::tempDir("e2e");
-	const auto r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " + gicpConfig() + " --out " + out.string());
+	const auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + kitti50() +
+	                                " --config " + gicpConfig() + " --out " + out.string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	for (const auto* f : {"trajectory.tum", "trajectory.kitti", "timings.csv", "run.yaml", "groundtruth.tum", "pose_graph.graph"})
+	for (const auto* f : {"trajectory.tum", "trajectory.kitti", "timings.csv", "run.yaml",
+	                      "groundtruth.tum", "pose_graph.graph"})
 		EXPECT_TRUE(fs::exists(out / f)) << f;
 	EXPECT_EQ(lineCount(out / "trajectory.kitti"), 50u);
 	EXPECT_EQ(lineCount(out / "timings.csv"), 51u);  // header + one line a scan
-	EXPECT_NE(r.output.find("ATE against the rawlog's ground truth"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("ATE against the rawlog's ground truth"), std::string::npos)
+	    << r.output;
 
 	// Accuracy against both pose files, 10..30 m segments (the 50 scans cover about 44 m).
 	// Measured: SemanticKITTI 1.16 %, 0.017 deg/m, ATE 0.14 m; official 3.3 % (the official
 	// poses disagree with the scans over the first frames, see the data README).
-	auto eval = [&](const std::string& poses) {
-		const auto e = test::runCommand(
-			test::bin("rasterslam-eval") + " traj --gt " + D + "/" + poses + " --times " + D + "/times.txt --calib " + D +
-			"/calib.txt --est " + (out / "trajectory.tum").string() + " --segments 10:30:10 --json");
+	auto eval = [&](const std::string& poses)
+	{
+		const auto e =
+		    test::runCommand(test::bin("rasterslam-eval") + " traj --gt " + D + "/" + poses +
+		                     " --times " + D + "/times.txt --calib " + D + "/calib.txt --est " +
+		                     (out / "trajectory.tum").string() + " --segments 10:30:10 --json");
 		EXPECT_EQ(e.exitCode, 0) << e.output;
 		return e.output;
 	};
@@ -112,13 +126,14 @@ TEST(EndToEnd, BatchModeIsDeterministic)
 	const auto a = test::tempDir("e2e-a"), b = test::tempDir("e2e-b");
 	for (const auto& out : {a, b})
 	{
-		const auto r = test::runCommand(
-			test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " + gicpConfig() +
-			" --first 10 --last 19 --quiet --out " + out.string());
+		const auto r =
+		    test::runCommand(test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " +
+		                     gicpConfig() + " --first 10 --last 19 --quiet --out " + out.string());
 		ASSERT_EQ(r.exitCode, 0) << r.output;
 	}
 	std::ifstream fa(a / "trajectory.kitti"), fb(b / "trajectory.kitti");
-	const std::string sa((std::istreambuf_iterator<char>(fa)), {}), sb((std::istreambuf_iterator<char>(fb)), {});
+	const std::string sa((std::istreambuf_iterator<char>(fa)), {}),
+	    sb((std::istreambuf_iterator<char>(fb)), {});
 	EXPECT_EQ(lineCount(a / "trajectory.kitti"), 10u);
 	EXPECT_EQ(sa, sb);
 }
@@ -127,11 +142,13 @@ TEST(EndToEnd, RealtimePlaybackReportsLateScans)
 {
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto out = test::tempDir("e2e");
-	const auto r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " + gicpConfig() +
-		" --last 4 --realtime --rate 2 --out " + out.string());
+	const auto r =
+	    test::runCommand(test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " +
+	                     gicpConfig() + " --last 4 --realtime --rate 2 --out " + out.string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	EXPECT_TRUE(std::regex_search(r.output, std::regex("5 scans, 5 keyframes, 0 lost, [0-9]+ late"))) << r.output;
+	EXPECT_TRUE(
+	    std::regex_search(r.output, std::regex("5 scans, 5 keyframes, 0 lost, [0-9]+ late")))
+	    << r.output;
 	std::ifstream f(out / "run.yaml");
 	const std::string y((std::istreambuf_iterator<char>(f)), {});
 	EXPECT_NE(y.find("realtime: true"), std::string::npos) << y;
@@ -141,15 +158,20 @@ TEST(EndToEnd, MissingOrDamagedRawlog)
 {
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto dir = test::tempDir("e2e");
-	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + (dir / "nope.rawlog").string() + " --out " + (dir / "o1").string());
+	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " +
+	                          (dir / "nope.rawlog").string() + " --out " + (dir / "o1").string());
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("cannot open rawlog '" + (dir / "nope.rawlog").string() + "': no such file"), std::string::npos) << r.output;
+	EXPECT_NE(
+	    r.output.find("cannot open rawlog '" + (dir / "nope.rawlog").string() + "': no such file"),
+	    std::string::npos)
+	    << r.output;
 
 	// A truncated rawlog: processed up to the damage, outputs written, error says where.
 	const auto cut = dir / "cut.rawlog";
 	fs::copy_file(kitti50(), cut);
 	fs::resize_file(cut, fs::file_size(cut) / 5);
-	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + cut.string() + " --config " + gicpConfig() + " --out " + (dir / "o2").string());
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + cut.string() + " --config " +
+	                     gicpConfig() + " --out " + (dir / "o2").string());
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find(cut.string() + ": truncated"), std::string::npos) << r.output;
 	const auto n = lineCount(dir / "o2" / "trajectory.kitti");
@@ -167,11 +189,14 @@ TEST(EndToEnd, BadScansStopTheRunButKeepWhatWasDone)
 	{
 		const auto rawlog = syntheticRawlog(dir, bad);
 		const auto out = dir / ("out-" + bad);
-		auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + gicpConfig() + " --out " + out.string());
+		auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog +
+		                          " --config " + gicpConfig() + " --out " + out.string());
 		EXPECT_EQ(r.exitCode, 1) << r.output;
 		EXPECT_NE(r.output.find(rawlog + ": scan #2"), std::string::npos) << r.output;
-		EXPECT_NE(r.output.find(bad == "nan" ? "has 1 non-finite points (NaN or inf)" : "has 0 points"), std::string::npos)
-			<< r.output;
+		EXPECT_NE(
+		    r.output.find(bad == "nan" ? "has 1 non-finite points (NaN or inf)" : "has 0 points"),
+		    std::string::npos)
+		    << r.output;
 		EXPECT_EQ(lineCount(out / "trajectory.kitti"), 2u);  // the scans before the bad one
 
 		// With engine.on_bad_scan: skip the run goes on.
@@ -182,7 +207,8 @@ TEST(EndToEnd, BadScansStopTheRunButKeepWhatWasDone)
 			text = std::regex_replace(text, std::regex("on_bad_scan: error"), "on_bad_scan: skip");
 			std::ofstream(cfg) << text;
 		}
-		r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + cfg.string() + " --out " + out.string());
+		r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " +
+		                     cfg.string() + " --out " + out.string());
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		EXPECT_EQ(lineCount(out / "trajectory.kitti"), 3u);
 
@@ -192,9 +218,11 @@ TEST(EndToEnd, BadScansStopTheRunButKeepWhatWasDone)
 			const auto cfg2 = dir / "drop-nan.yaml";
 			std::ifstream in(gicpConfig());
 			std::string text((std::istreambuf_iterator<char>(in)), {});
-			text = std::regex_replace(text, std::regex("drop_nonfinite_points: false"), "drop_nonfinite_points: true");
+			text = std::regex_replace(text, std::regex("drop_nonfinite_points: false"),
+			                          "drop_nonfinite_points: true");
 			std::ofstream(cfg2) << text;
-			r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + cfg2.string() + " --out " + out.string());
+			r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog +
+			                     " --config " + cfg2.string() + " --out " + out.string());
 			EXPECT_EQ(r.exitCode, 0) << r.output;
 			EXPECT_EQ(lineCount(out / "trajectory.kitti"), 4u);
 		}
@@ -205,29 +233,43 @@ TEST(EndToEnd, BadConfigsAndOutputFolders)
 {
 	const auto dir = test::tempDir("e2e");
 	const auto rawlog = syntheticRawlog(dir, "none");
-	auto runWith = [&](const std::string& yamlText) {
+	auto runWith = [&](const std::string& yamlText)
+	{
 		const auto cfg = dir / "cfg.yaml";
 		std::ofstream(cfg) << yamlText;
-		return test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + cfg.string() + " --out " + (dir / "o").string());
+		return test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " +
+		                        cfg.string() + " --out " + (dir / "o").string());
 	};
 	auto r = runWith("odometry: {class: rasterslam::GicpOdometri}\n");
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("unknown odometry plugin class 'rasterslam::GicpOdometri'"), std::string::npos) << r.output;
-	EXPECT_NE(r.output.find("rasterslam::GicpOdometry"), std::string::npos) << r.output;  // the list
+	EXPECT_NE(r.output.find("unknown odometry plugin class 'rasterslam::GicpOdometri'"),
+	          std::string::npos)
+	    << r.output;
+	EXPECT_NE(r.output.find("rasterslam::GicpOdometry"), std::string::npos)
+	    << r.output;  // the list
 
-	r = runWith("odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: 0.5, max_iter: 3}}\n");
+	r = runWith(
+	    "odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: 0.5, max_iter: 3}}\n");
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("cfg.yaml: unknown key(s) in 'odometry.params': max_iter"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("cfg.yaml: unknown key(s) in 'odometry.params': max_iter"),
+	          std::string::npos)
+	    << r.output;
 
 	r = runWith("odometry: {class: rasterslam::GicpOdometry, params: {max_iterations: many}}\n");
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("'odometry.params.max_iterations': expected an integer, got 'many'"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("'odometry.params.max_iterations': expected an integer, got 'many'"),
+	          std::string::npos)
+	    << r.output;
 
 	// An output folder that cannot be created (a file stands in the way).
 	std::ofstream(dir / "afile") << "x";
-	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " + gicpConfig() + " --out " + (dir / "afile" / "sub").string());
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --config " +
+	                     gicpConfig() + " --out " + (dir / "afile" / "sub").string());
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("output folder '" + (dir / "afile" / "sub").string() + "' cannot be created"), std::string::npos) << r.output;
+	EXPECT_NE(
+	    r.output.find("output folder '" + (dir / "afile" / "sub").string() + "' cannot be created"),
+	    std::string::npos)
+	    << r.output;
 
 	// Usage errors exit with 2.
 	r = test::runCommand(test::bin("rasterslam") + " run --out " + (dir / "o").string());
@@ -241,8 +283,10 @@ TEST(EndToEnd, ListPluginsShowsRoles)
 {
 	const auto r = test::runCommand(test::bin("rasterslam") + " list-plugins");
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	EXPECT_TRUE(std::regex_search(r.output, std::regex("odometry +rasterslam::GicpOdometry"))) << r.output;
-	EXPECT_TRUE(std::regex_search(r.output, std::regex("optimizer +rasterslam::LevMarqOptimizer"))) << r.output;
+	EXPECT_TRUE(std::regex_search(r.output, std::regex("odometry +rasterslam::GicpOdometry")))
+	    << r.output;
+	EXPECT_TRUE(std::regex_search(r.output, std::regex("optimizer +rasterslam::LevMarqOptimizer")))
+	    << r.output;
 }
 
 TEST(EndToEnd, PaperPipelineIsDeterministicAndOutputsDoNotMix)
@@ -252,21 +296,22 @@ TEST(EndToEnd, PaperPipelineIsDeterministicAndOutputsDoNotMix)
 	const auto slam = test::sourcePath("share/rasterslam/config/slam.yaml");
 	for (const auto& out : {a, b})
 	{
-		const auto r = test::runCommand(
-			test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " + slam + " --quiet --out " +
-			out.string() + " --map-out " + (out / "map").string());
+		const auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + kitti50() +
+		                                " --config " + slam + " --quiet --out " + out.string() +
+		                                " --map-out " + (out / "map").string());
 		ASSERT_EQ(r.exitCode, 0) << r.output;
 	}
 	for (const auto* f : {"trajectory.kitti", "loops.txt", "pose_graph.graph"})
 	{
 		std::ifstream fa(a / f), fb(b / f);
-		const std::string sa((std::istreambuf_iterator<char>(fa)), {}), sb((std::istreambuf_iterator<char>(fb)), {});
+		const std::string sa((std::istreambuf_iterator<char>(fa)), {}),
+		    sb((std::istreambuf_iterator<char>(fb)), {});
 		EXPECT_FALSE(sa.empty()) << f;
 		EXPECT_EQ(sa, sb) << f;
 	}
 	// A later run without a loop detector into the same folder leaves no loops.txt of the first.
-	const auto r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + kitti50() + " --last 5 --quiet --out " + a.string());
+	const auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + kitti50() +
+	                                " --last 5 --quiet --out " + a.string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_FALSE(fs::exists(a / "loops.txt"));
 	EXPECT_EQ(lineCount(a / "trajectory.kitti"), 6u);
@@ -279,13 +324,18 @@ TEST(EndToEnd, MissingExternalScanKeepsWhatCameBefore)
 	const auto dir = test::tempDir("e2e");
 	fs::create_directories(dir / "velo");
 	const auto bins = io::listKittiBins(D + "/velodyne");
-	for (int i = 0; i < 8; i++) fs::copy_file(bins[i], dir / "velo" / fs::path(bins[i]).filename());
+	for (int i = 0; i < 8; i++)
+		fs::copy_file(bins[i], dir / "velo" / fs::path(bins[i]).filename());
 	const auto rawlog = (dir / "ext.rawlog").string();
-	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "velo").string() + " --external -o " + rawlog);
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "velo").string() +
+	                          " --external -o " + rawlog);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	fs::remove(dir / "velo" / fs::path(bins[5]).filename());
-	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --out " + (dir / "o").string());
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog + " --out " +
+	                     (dir / "o").string());
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find(fs::path(bins[5]).filename().string() + "', which does not exist"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find(fs::path(bins[5]).filename().string() + "', which does not exist"),
+	          std::string::npos)
+	    << r.output;
 	EXPECT_EQ(lineCount(dir / "o" / "trajectory.kitti"), 5u);  // scans 0-4
 }

@@ -44,7 +44,10 @@ class FixedStepOdometry : public Odometry
 }  // namespace rasterslam::test
 
 IMPLEMENTS_MRPT_OBJECT(FixedStepOdometry, rasterslam::Odometry, rasterslam::test)
-MRPT_INITIALIZER(register_test_plugins) { mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::FixedStepOdometry)); }
+MRPT_INITIALIZER(register_test_plugins)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::FixedStepOdometry));
+}
 
 namespace
 {
@@ -54,7 +57,8 @@ class VectorSource : public ScanSource
 	explicit VectorSource(std::deque<Scan> s) : scans_(std::move(s)) {}
 	std::optional<Scan> next() override
 	{
-		if (scans_.empty()) return std::nullopt;
+		if (scans_.empty())
+			return std::nullopt;
 		Scan s = std::move(scans_.front());
 		scans_.pop_front();
 		return s;
@@ -73,7 +77,8 @@ std::deque<Scan> makeScans(int n, bool withOdometry, const CPose3D& odoStep)
 		Scan s;
 		s.index = k;
 		s.stamp = 10 + 0.1 * k;
-		for (int i = 0; i < 200; i++) s.points.push_back({float(i), 1, 0, 0});
+		for (int i = 0; i < 200; i++)
+			s.points.push_back({float(i), 1, 0, 0});
 		if (withOdometry && k > 0)
 		{
 			mrpt::poses::CPose3DPDFGaussian inc(odoStep);
@@ -89,7 +94,9 @@ std::deque<Scan> makeScans(int n, bool withOdometry, const CPose3D& odoStep)
 
 TEST(Engine, KeyframesAndAPoseForEveryScan)
 {
-	Engine e(yaml::FromText("odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 3, dx: 1.0, dyaw: 0.1}}\n"), "t.yaml");
+	Engine e(yaml::FromText("odometry: {class: rasterslam::test::FixedStepOdometry, params: "
+	                        "{every: 3, dx: 1.0, dyaw: 0.1}}\n"),
+	         "t.yaml");
 	VectorSource src(makeScans(10, false, CPose3D()));
 	const auto res = e.run(src, {});
 	ASSERT_EQ(res.scans.size(), 10u);
@@ -129,18 +136,19 @@ TEST(Engine, RawlogOdometryBecomesExtraEdgesAndIsOptimized)
 	// The LiDAR odometry says 1 m a scan; the wheel odometry says 1.1 m with a much smaller
 	// covariance: after optimization the keyframes follow the wheels.
 	const std::string cfg =
-		"odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 2, dx: 1.0}}\n"
-		"optimizer: {class: rasterslam::LevMarqOptimizer}\n"
-		"engine: {use_rawlog_odometry: true}\n";
+	    "odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 2, dx: 1.0}}\n"
+	    "optimizer: {class: rasterslam::LevMarqOptimizer}\n"
+	    "engine: {use_rawlog_odometry: true}\n";
 	Engine e(yaml::FromText(cfg), "t.yaml");
 	VectorSource src(makeScans(7, true, CPose3D(1.1, 0, 0, 0, 0, 0)));
 	const auto res = e.run(src, {});
 	EXPECT_EQ(res.keyframes, 4u);  // 0, 2, 4, 6
 	EXPECT_EQ(res.odometryEdges, 3u);
-	EXPECT_EQ(res.graph.edges.size(), 6u);	// one LiDAR and one wheel edge a keyframe pair
+	EXPECT_EQ(res.graph.edges.size(), 6u);  // one LiDAR and one wheel edge a keyframe pair
 	bool sawWheelEdge = false;
 	for (const auto& [ids, edge] : res.graph.edges)
-		if (std::abs(edge.mean.x() - 2.2) < 1e-9) sawWheelEdge = true;
+		if (std::abs(edge.mean.x() - 2.2) < 1e-9)
+			sawWheelEdge = true;
 	EXPECT_TRUE(sawWheelEdge);
 	EXPECT_TRUE(res.optimizer.ran);
 	EXPECT_LT(res.optimizer.finalError, res.optimizer.initialError);
@@ -152,7 +160,9 @@ TEST(Engine, RawlogOdometryBecomesExtraEdgesAndIsOptimized)
 	EXPECT_NEAR(res.poses[6].x(), res.graph.nodes.at(3).x(), 1e-9);
 
 	// Without the option, the odometry in the input is ignored.
-	Engine off(yaml::FromText("odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 2}}\n"), "t.yaml");
+	Engine off(yaml::FromText(
+	               "odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 2}}\n"),
+	           "t.yaml");
 	VectorSource src2(makeScans(7, true, CPose3D(1.1, 0, 0, 0, 0, 0)));
 	EXPECT_EQ(off.run(src2, {}).odometryEdges, 0u);
 }
@@ -175,15 +185,18 @@ TEST(Optimizer, RecoversAKnownSquare)
 	std::mt19937 rng(5);
 	std::normal_distribution<double> n(0, 0.3);
 	for (int i = 0; i < 8; i++)
-		g.nodes[i] = i == 0 ? truth[0] : truth[i] + CPose3D(n(rng), n(rng), 0.1 * n(rng), 0.1 * n(rng), 0, 0);
-	auto addEdge = [&](int a, int b) {
+		g.nodes[i] = i == 0 ? truth[0]
+		                    : truth[i] + CPose3D(n(rng), n(rng), 0.1 * n(rng), 0.1 * n(rng), 0, 0);
+	auto addEdge = [&](int a, int b)
+	{
 		mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
 		e.mean = truth[b] - truth[a];
 		e.cov_inv.setIdentity();
 		e.cov_inv *= 100;
 		g.insertEdge(a, b, e);
 	};
-	for (int i = 0; i + 1 < 8; i++) addEdge(i, i + 1);
+	for (int i = 0; i + 1 < 8; i++)
+		addEdge(i, i + 1);
 	addEdge(7, 0);
 	g.root = 0;
 	const auto r = opt->optimize(g);

@@ -18,7 +18,8 @@ std::vector<Scan> readAll(const std::string& path)
 {
 	io::RawlogSource src(path);
 	std::vector<Scan> v;
-	while (auto s = src.next()) v.push_back(std::move(*s));
+	while (auto s = src.next())
+		v.push_back(std::move(*s));
 	EXPECT_EQ(src.stopReason(), "");
 	return v;
 }
@@ -29,18 +30,18 @@ TEST(Kitti, ConverterEmbedsScansAndGroundTruth)
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto D = test::sharedData("kitti00-0000-0100");
 	const auto out = (test::tempDir("kitti") / "k.rawlog").string();
-	const auto r = test::runCommand(
-		test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D +
-		"/poses_semantickitti.txt --calib " + D + "/calib.txt --times " + D +
-		"/times.txt --first 5 --last 14 -o " + out);
+	const auto r =
+	    test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D +
+	                     "/poses_semantickitti.txt --calib " + D + "/calib.txt --times " + D +
+	                     "/times.txt --first 5 --last 14 -o " + out);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 
 	const auto scans = readAll(out);
 	ASSERT_EQ(scans.size(), 10u);
 	const auto bins = io::listKittiBins(D + "/velodyne");
 	const auto times = io::loadKittiTimes(D + "/times.txt");
-	const auto gt = io::kittiCameraToVelodyne(
-		io::loadTrajectory(D + "/poses_semantickitti.txt"), io::loadKittiCalibTr(D + "/calib.txt"));
+	const auto gt = io::kittiCameraToVelodyne(io::loadTrajectory(D + "/poses_semantickitti.txt"),
+	                                          io::loadKittiCalibTr(D + "/calib.txt"));
 	for (size_t k = 0; k < scans.size(); k++)
 	{
 		const size_t frame = 5 + k;
@@ -56,7 +57,8 @@ TEST(Kitti, ConverterEmbedsScansAndGroundTruth)
 		EXPECT_NEAR(scans[k].groundTruth->z(), g.translation().z(), 1e-9);
 		const auto R = scans[k].groundTruth->getRotationMatrix();
 		for (int i = 0; i < 3; i++)
-			for (int j = 0; j < 3; j++) EXPECT_NEAR(R(i, j), g.linear()(i, j), 1e-9);
+			for (int j = 0; j < 3; j++)
+				EXPECT_NEAR(R(i, j), g.linear()(i, j), 1e-9);
 	}
 	// Velodyne frame: the car drives along +x, so x grows and the height barely changes.
 	EXPECT_GT(scans.back().groundTruth->x() - scans.front().groundTruth->x(), 5.0);
@@ -74,7 +76,8 @@ TEST(Kitti, ExternalStorageAndSequenceLayout)
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto D = test::sharedData("kitti00-0000-0100");
 	const auto dir = test::tempDir("kitti");
-	// A KITTI-layout copy of three scans: dataset/sequences/00/{velodyne,calib,times}, dataset/poses/00.txt
+	// A KITTI-layout copy of three scans: dataset/sequences/00/{velodyne,calib,times},
+	// dataset/poses/00.txt
 	const auto seq = dir / "dataset" / "sequences" / "00";
 	fs::create_directories(seq / "velodyne");
 	fs::create_directories(dir / "dataset" / "poses");
@@ -86,7 +89,8 @@ TEST(Kitti, ExternalStorageAndSequenceLayout)
 	fs::copy_file(D + "/poses_official.txt", dir / "dataset" / "poses" / "00.txt");
 
 	const auto ext = (dir / "ext.rawlog").string(), emb = (dir / "emb.rawlog").string();
-	auto r = test::runCommand(test::bin("kitti2rawlog") + " --sequence " + seq.string() + " --external -o " + ext);
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --sequence " + seq.string() +
+	                          " --external -o " + ext);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	r = test::runCommand(test::bin("kitti2rawlog") + " --sequence " + seq.string() + " -o " + emb);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
@@ -111,16 +115,21 @@ TEST(Kitti, BadInputIsReported)
 	const auto dir = test::tempDir("kitti");
 	fs::create_directories(dir / "velo");
 	std::ofstream(dir / "velo" / "000000.bin", std::ios::binary) << "0123456789";  // 10 bytes
-	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "velo").string() + " -o " + (dir / "x.rawlog").string());
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "velo").string() +
+	                          " -o " + (dir / "x.rawlog").string());
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("000000.bin': size 10 bytes is not a multiple of 16"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("000000.bin': size 10 bytes is not a multiple of 16"),
+	          std::string::npos)
+	    << r.output;
 	EXPECT_FALSE(fs::exists(dir / "x.rawlog"));
 
-	r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D + "/poses_official.txt -o " + (dir / "y.rawlog").string());
+	r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D +
+	                     "/poses_official.txt -o " + (dir / "y.rawlog").string());
 	EXPECT_EQ(r.exitCode, 2);
 	EXPECT_NE(r.output.find("--poses needs --calib"), std::string::npos) << r.output;
 
-	r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "nothere").string() + " -o " + (dir / "z.rawlog").string());
+	r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "nothere").string() +
+	                     " -o " + (dir / "z.rawlog").string());
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find("nothere' does not exist"), std::string::npos) << r.output;
 }
@@ -142,11 +151,13 @@ TEST(Kitti, VerticalCorrectionRaisesEveryElevation)
 	{
 		const auto &p = a[0].points[i], &q = b[0].points[i];
 		const double rp = std::hypot(p.x, p.y), rq = std::hypot(q.x, q.y);
-		if (rp < 1) continue;
+		if (rp < 1)
+			continue;
 		EXPECT_NEAR(std::atan2(q.z, rq) - std::atan2(p.z, rp), 0.205 * M_PI / 180, 1e-5) << i;
-		EXPECT_NEAR(std::hypot(rq, q.z), std::hypot(rp, p.z), 1e-4) << i;  // range kept
+		EXPECT_NEAR(std::hypot(rq, q.z), std::hypot(rp, p.z), 1e-4) << i;    // range kept
 		EXPECT_NEAR(std::atan2(q.y, q.x), std::atan2(p.y, p.x), 1e-5) << i;  // azimuth kept
 	}
-	const auto r = test::runCommand(base + (dir / "x.rawlog").string() + " --external --vertical-correction-deg 0.2");
+	const auto r = test::runCommand(base + (dir / "x.rawlog").string() +
+	                                " --external --vertical-correction-deg 0.2");
 	EXPECT_EQ(r.exitCode, 2) << r.output;
 }

@@ -18,18 +18,22 @@ namespace
 double jsonNumber(const std::string& json, const std::string& key)
 {
 	std::smatch m;
-	if (!std::regex_search(json, m, std::regex("\"" + key + "\": ([-0-9.eE+]+)"))) return std::nan("");
+	if (!std::regex_search(json, m, std::regex("\"" + key + "\": ([-0-9.eE+]+)")))
+		return std::nan("");
 	return std::stod(m[1]);
 }
 
 /** The simulated rawlog, made once per test program. */
 std::string vlp16Rawlog()
 {
-	static const std::string path = [] {
-		const auto p = (fs::temp_directory_path() / ("rasterslam-loop-vlp16-" + std::to_string(::getpid()) + ".rawlog")).string();
+	static const std::string path = []
+	{
+		const auto p = (fs::temp_directory_path() /
+		                ("rasterslam-loop-vlp16-" + std::to_string(::getpid()) + ".rawlog"))
+		                   .string();
 		test::removeAtExit(p);
-		const auto r = test::runCommand(
-			test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
+		const auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+		                                test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		return p;
 	}();
@@ -40,10 +44,11 @@ std::string vlp16Rawlog()
 TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 {
 	const auto dir = test::tempDir("loop");
-	const auto runWith = [&](const std::string& cfg, const fs::path& out) {
+	const auto runWith = [&](const std::string& cfg, const fs::path& out)
+	{
 		const auto r = test::runCommand(
-			test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() + " --config " +
-			test::sourcePath("share/rasterslam/config/" + cfg) + " --quiet --out " + out.string());
+		    test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() + " --config " +
+		    test::sourcePath("share/rasterslam/config/" + cfg) + " --quiet --out " + out.string());
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		return r.output;
 	};
@@ -53,12 +58,13 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	EXPECT_FALSE(fs::exists(dir / "odo" / "loops.txt"));  // no loop detector configured
 
 	// Precision and recall against the simulator's ground truth (4 m, 30 s).
-	const auto e = test::runCommand(
-		test::bin("rasterslam-eval") + " loops --loops " + (dir / "slam" / "loops.txt").string() + " --gt " +
-		(dir / "slam" / "groundtruth.tum").string() + " --json");
+	const auto e = test::runCommand(test::bin("rasterslam-eval") + " loops --loops " +
+	                                (dir / "slam" / "loops.txt").string() + " --gt " +
+	                                (dir / "slam" / "groundtruth.tum").string() + " --json");
 	ASSERT_EQ(e.exitCode, 0) << e.output;
 	std::smatch m;
-	ASSERT_TRUE(std::regex_search(e.output, m, std::regex("\"detector\": \\{[^}]*\\}"))) << e.output;
+	ASSERT_TRUE(std::regex_search(e.output, m, std::regex("\"detector\": \\{[^}]*\\}")))
+	    << e.output;
 	const std::string det = m[0];
 	// Measured: precision 1, recall 0.43-0.82 (3 of 7 to 9 of 11 revisiting keyframes, with
 	// the odometry settings of the day): a place found at all, and never a wrong one.
@@ -69,10 +75,12 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	// Each accepted loop's transform agrees with the ground truth, and none is found before
 	// the route could have revisited anything.
 	const auto gt = io::loadTrajectory((dir / "slam" / "groundtruth.tum").string());
-	auto gtAt = [&](double t) {
+	auto gtAt = [&](double t)
+	{
 		const io::StampedPose* best = &gt.front();
 		for (const auto& p : gt)
-			if (std::abs(p.stamp - t) < std::abs(best->stamp - t)) best = &p;
+			if (std::abs(p.stamp - t) < std::abs(best->stamp - t))
+				best = &p;
 		EXPECT_LT(std::abs(best->stamp - t), 1e-3);
 		return best->pose;
 	};
@@ -81,14 +89,17 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	int accepted = 0;
 	while (std::getline(f, line))
 	{
-		if (line.empty() || line[0] == '#') continue;
+		if (line.empty() || line[0] == '#')
+			continue;
 		std::istringstream ss(line);
 		double qs, cs, score, x, y, z, qx, qy, qz, qw;
 		int inl, ver, acc;
 		std::string reason;
-		ss >> qs >> cs >> score >> inl >> ver >> acc >> reason >> x >> y >> z >> qx >> qy >> qz >> qw;
+		ss >> qs >> cs >> score >> inl >> ver >> acc >> reason >> x >> y >> z >> qx >> qy >> qz >>
+		    qw;
 		ASSERT_FALSE(ss.fail()) << line;
-		if (!acc) continue;
+		if (!acc)
+			continue;
 		++accepted;
 		EXPECT_GT(qs - gt.front().stamp, 30.0) << line;  // the first 30 s revisit nothing
 		const Eigen::Isometry3d truth = gtAt(cs).inverse() * gtAt(qs);
@@ -99,10 +110,11 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	EXPECT_GE(accepted, 2);
 
 	// Loop closure pays: measured ATE 0.40 m odometry only, 0.29 m optimized.
-	auto ate = [&](const fs::path& out) {
-		const auto r = test::runCommand(
-			test::bin("rasterslam-eval") + " traj --gt " + (out / "groundtruth.tum").string() + " --est " +
-			(out / "trajectory.tum").string() + " --json");
+	auto ate = [&](const fs::path& out)
+	{
+		const auto r = test::runCommand(test::bin("rasterslam-eval") + " traj --gt " +
+		                                (out / "groundtruth.tum").string() + " --est " +
+		                                (out / "trajectory.tum").string() + " --json");
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		return jsonNumber(r.output, "ate_rmse_m");
 	};
@@ -113,30 +125,38 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 TEST(LoopClosure, ConfigurationErrors)
 {
 	const auto dir = test::tempDir("loop");
-	auto runWith = [&](const std::string& yaml) {
+	auto runWith = [&](const std::string& yaml)
+	{
 		const auto cfg = dir / "cfg.yaml";
 		std::ofstream(cfg) << yaml;
-		return test::runCommand(
-			test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() + " --last 40 --config " + cfg.string() +
-			" --quiet --out " + (dir / "o").string());
+		return test::runCommand(test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() +
+		                        " --last 40 --config " + cfg.string() + " --quiet --out " +
+		                        (dir / "o").string());
 	};
 	auto r = runWith(
-		"odometry: {class: rasterslam::OrbOdometry}\nrasterizer: {class: rasterslam::ElevationRasterizer}\n"
-		"loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: nope.vocab}}\n");
+	    "odometry: {class: rasterslam::OrbOdometry}\nrasterizer: {class: "
+	    "rasterslam::ElevationRasterizer}\n"
+	    "loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: "
+	    "nope.vocab}}\n");
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("vocabulary_file: '" + (dir / "nope.vocab").string() + "' does not exist"), std::string::npos)
-		<< r.output;  // relative to the config file's folder
+	EXPECT_NE(
+	    r.output.find("vocabulary_file: '" + (dir / "nope.vocab").string() + "' does not exist"),
+	    std::string::npos)
+	    << r.output;  // relative to the config file's folder
 	r = runWith(
-		"odometry: {class: rasterslam::GicpOdometry}\nmap_manager: {class: rasterslam::LocalMapManager}\n"
-		"loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: " +
-		test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + "}}\n");
+	    "odometry: {class: rasterslam::GicpOdometry}\nmap_manager: {class: "
+	    "rasterslam::LocalMapManager}\n"
+	    "loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: " +
+	    test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + "}}\n");
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find("needs keyframes with features"), std::string::npos) << r.output;
 	// The loop detector queries the map manager's map: without one the config is refused.
 	r = runWith(
-		"odometry: {class: rasterslam::OrbOdometry}\nrasterizer: {class: rasterslam::ElevationRasterizer}\n"
-		"loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: " +
-		test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + "}}\n");
+	    "odometry: {class: rasterslam::OrbOdometry}\nrasterizer: {class: "
+	    "rasterslam::ElevationRasterizer}\n"
+	    "loop_detector: {class: rasterslam::BowLoopDetector, params: {vocabulary_file: " +
+	    test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + "}}\n");
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("'loop_detector' needs a 'map_manager'"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("'loop_detector' needs a 'map_manager'"), std::string::npos)
+	    << r.output;
 }

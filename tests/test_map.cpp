@@ -4,18 +4,17 @@
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/io/CMemoryStream.h>
 #include <mrpt/serialization/CArchive.h>
-#include <rasterslam/map/map.h>
 #include <rasterslam/map/local_map_store.h>
-
+#include <rasterslam/map/map.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <csignal>
 #include <fstream>
+#include <random>
 #include <set>
 #include <thread>
-#include <random>
 
 #include "test_support.h"
 
@@ -37,7 +36,8 @@ LocalMap::Ptr makeLocalMap(uint64_t id, std::vector<uint64_t> kfs, std::mt19937&
 	for (int i = 0; i < 50; i++)
 	{
 		lm->xyz.insert(lm->xyz.end(), {u(rng), u(rng), u(rng) / 10});
-		for (int b = 0; b < 32; b++) lm->descriptors.push_back(static_cast<uint8_t>(rng()));
+		for (int b = 0; b < 32; b++)
+			lm->descriptors.push_back(static_cast<uint8_t>(rng()));
 		lm->observers.push_back(1u + (static_cast<uint32_t>(rng()) & 6u));
 	}
 	lm->imagePng = {0x89, 'P', 'N', 'G', 1, 2, 3};
@@ -127,10 +127,11 @@ TEST(MapModel, LocalMapGraphRoundTripAndVersion)
 TEST(MapModel, PoseViewPrefersTheLiveGraph)
 {
 	std::map<uint64_t, mrpt::poses::CPose3D> live{{5, mrpt::poses::CPose3D(1, 0, 0, 0, 0, 0)}};
-	std::map<uint64_t, mrpt::poses::CPose3D> prior{
-		{5, mrpt::poses::CPose3D(9, 0, 0, 0, 0, 0)}, {2, mrpt::poses::CPose3D(0, 3, 0, 0, 0, 0)}};
+	std::map<uint64_t, mrpt::poses::CPose3D> prior{{5, mrpt::poses::CPose3D(9, 0, 0, 0, 0, 0)},
+	                                               {2, mrpt::poses::CPose3D(0, 3, 0, 0, 0, 0)}};
 	PoseView v;
-	v.live = [&](uint64_t id) -> const mrpt::poses::CPose3D* {
+	v.live = [&](uint64_t id) -> const mrpt::poses::CPose3D*
+	{
 		const auto it = live.find(id);
 		return it == live.end() ? nullptr : &it->second;
 	};
@@ -156,7 +157,8 @@ TEST(MapModel, MapFileRoundTrip)
 		kf->scanIndex = 3 * k;
 		kf->stamp = 100 + static_cast<double>(k);
 		m.keyframes[k] = kf;
-		live[k] = mrpt::poses::CPose3D(static_cast<double>(k), 0.5 * static_cast<double>(k), 0, 0.1 * static_cast<double>(k), 0, 0);
+		live[k] = mrpt::poses::CPose3D(static_cast<double>(k), 0.5 * static_cast<double>(k), 0,
+		                               0.1 * static_cast<double>(k), 0, 0);
 	}
 	m.localMaps[0] = makeLocalMap(0, {0, 1, 2, 3, 4}, rng);
 	m.localMaps[1] = makeLocalMap(1, {4, 5, 6, 7, 8}, rng);
@@ -168,7 +170,8 @@ TEST(MapModel, MapFileRoundTrip)
 	EXPECT_EQ(m.nextLocalMapId(), 2u);
 	EXPECT_EQ(m.localMapsOf(4), (std::vector<uint64_t>{0, 1}));
 	PoseView v;
-	v.live = [&](uint64_t id) -> const mrpt::poses::CPose3D* {
+	v.live = [&](uint64_t id) -> const mrpt::poses::CPose3D*
+	{
 		const auto it = live.find(id);
 		return it == live.end() ? nullptr : &it->second;
 	};
@@ -202,9 +205,11 @@ TEST(MapModel, MapFileRoundTrip)
 
 	// Saved over itself, a loaded map writes no local map again; one it no longer has leaves
 	// the store.
-	auto storeFiles = [&] {
+	auto storeFiles = [&]
+	{
 		std::set<std::string> names;
-		for (const auto& e : fs::directory_iterator(dir / "store")) names.insert(e.path().filename().string());
+		for (const auto& e : fs::directory_iterator(dir / "store"))
+			names.insert(e.path().filename().string());
 		return names;
 	};
 	const auto files = storeFiles();
@@ -230,9 +235,10 @@ TEST(MapModel, ASaveKilledMidwayLeavesThePreviousMapLoadable)
 {
 	const test::ScopedTempDir dir("map");
 	std::mt19937 rng(5);
-	// The previous map: 2 local maps. The new one: 60 local maps of 50 points and 241 keyframes with features (a save of a
-	// few hundred ms), killed at seeded moments along the way.
-	auto makeMap = [&](std::size_t localMaps) {
+	// The previous map: 2 local maps. The new one: 60 local maps of 50 points and 241 keyframes
+	// with features (a save of a few hundred ms), killed at seeded moments along the way.
+	auto makeMap = [&](std::size_t localMaps)
+	{
 		Map m;
 		m.sessions = 3;
 		for (uint64_t k = 0; k <= 4 * localMaps; k++)
@@ -249,11 +255,13 @@ TEST(MapModel, ASaveKilledMidwayLeavesThePreviousMapLoadable)
 			kf->octave.assign(n, 0);
 			kf->xyz.assign(3 * n, 0.5f);
 			kf->descriptors.resize(32 * n);
-			for (auto& b : kf->descriptors) b = static_cast<uint8_t>(rng());
+			for (auto& b : kf->descriptors)
+				b = static_cast<uint8_t>(rng());
 			m.keyframes[k] = kf;
 			m.priorPoses[k] = mrpt::poses::CPose3D(static_cast<double>(k), 0, 0, 0, 0, 0);
 		}
-		for (uint64_t i = 0; i < localMaps; i++) m.localMaps[i] = makeLocalMap(i, {4 * i, 4 * i + 1, 4 * i + 4}, rng);
+		for (uint64_t i = 0; i < localMaps; i++)
+			m.localMaps[i] = makeLocalMap(i, {4 * i, 4 * i + 1, 4 * i + 4}, rng);
 		return m;
 	};
 	const Map before = makeMap(2), after = makeMap(60);
@@ -263,7 +271,8 @@ TEST(MapModel, ASaveKilledMidwayLeavesThePreviousMapLoadable)
 	saveMap(before, pb, dir.path().string());
 	const auto t0 = std::chrono::steady_clock::now();
 	saveMap(after, pa, dir.path().string());
-	const double saveMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	const double saveMs =
+	    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 	saveMap(before, pb, dir.path().string());
 
 	std::uniform_real_distribution<double> when(0.0, 2.5);
@@ -284,16 +293,19 @@ TEST(MapModel, ASaveKilledMidwayLeavesThePreviousMapLoadable)
 			}
 			::_exit(0);
 		}
-		std::this_thread::sleep_for(std::chrono::microseconds(static_cast<int64_t>(1000 * saveMs * when(rng))));
+		std::this_thread::sleep_for(
+		    std::chrono::microseconds(static_cast<int64_t>(1000 * saveMs * when(rng))));
 		::kill(child, SIGKILL);
 		int status = 0;
 		::waitpid(child, &status, 0);
 		// Whatever the moment: a whole map, the old or the new one.
 		const Map m = loadMap(dir.path().string());
 		ASSERT_TRUE(m.localMaps.size() == 2 || m.localMaps.size() == 60) << m.localMaps.size();
-		for (const auto& [id, lm] : m.localMaps) EXPECT_EQ(m.data(id)->points(), 50u) << id;
+		for (const auto& [id, lm] : m.localMaps)
+			EXPECT_EQ(m.data(id)->points(), 50u) << id;
 		(m.localMaps.size() == 2 ? sawOld : sawNew)++;
-		if (m.localMaps.size() == 60) saveMap(before, pb, dir.path().string());
+		if (m.localMaps.size() == 60)
+			saveMap(before, pb, dir.path().string());
 	}
 	// Both outcomes happened (the kill times span the save), and the next save cleared what
 	// the killed ones left.
@@ -301,14 +313,16 @@ TEST(MapModel, ASaveKilledMidwayLeavesThePreviousMapLoadable)
 	saveMap(before, pb, dir.path().string());
 	for (const auto& e : fs::directory_iterator(dir.path()))
 		EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
-	std::printf("save %.0f ms; killed saves left the old map %zu times, the new one %zu times\n", saveMs, sawOld, sawNew);
+	std::printf("save %.0f ms; killed saves left the old map %zu times, the new one %zu times\n",
+	            saveMs, sawOld, sawNew);
 }
 
 TEST(MapModel, DamagedAndOldMapsAreRefused)
 {
 	const test::ScopedTempDir dir("map");
 	const auto file = mapFilePath(dir.path().string());
-	auto expectError = [&](const std::string& what) {
+	auto expectError = [&](const std::string& what)
+	{
 		try
 		{
 			loadMap(dir.path().string());
@@ -350,7 +364,8 @@ TEST(MapModel, OfflineStoreRoundTripChecksumAndOnDemandLoading)
 	for (const auto& e : fs::directory_iterator(store.dir()))
 		EXPECT_EQ(e.path().filename().string(), "000012.rslm");  // no temporary left
 
-	auto expectError = [&](uint64_t id, const std::string& what) {
+	auto expectError = [&](uint64_t id, const std::string& what)
+	{
 		try
 		{
 			store.load(id);

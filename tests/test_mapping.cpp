@@ -2,19 +2,19 @@
 // block loop): local maps overlap and carry the optimized poses, keyframes give up their
 // features once mapped, online poses are those a robot had, wrong loop edges are
 // down-weighted by the robust loss, and local BA is deterministic.
-#include <rasterslam/io/trajectory_io.h>
 #include <mrpt/core/format.h>
 #include <mrpt/graphs/CNetworkOfPoses.h>
 #include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/maps/registerAllClasses.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/registerAllClasses.h>
-#include <opencv2/imgcodecs.hpp>
+#include <rasterslam/io/trajectory_io.h>
 #include <rasterslam/map/map.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <set>
 
@@ -29,10 +29,11 @@ namespace
 const std::string& vlp16Rawlog()
 {
 	static const test::ScopedTempDir dir("mapping-rawlog");
-	static const std::string path = [] {
+	static const std::string path = []
+	{
 		const auto p = (dir / "vlp16.rawlog").string();
-		const auto r = test::runCommand(
-			test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
+		const auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+		                                test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		return p;
 	}();
@@ -44,11 +45,12 @@ fs::path slamConfig(const fs::path& dir, bool localBa, const std::string& engine
 {
 	std::ifstream in(test::sourcePath("share/rasterslam/config/slam.yaml"));
 	std::string y((std::istreambuf_iterator<char>(in)), {});
-	y = std::regex_replace(
-		y, std::regex("vocabulary_file: \\.\\./vocab/"),
-		"vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
-	y = std::regex_replace(y, std::regex("local_ba: false"), localBa ? "local_ba: true" : "local_ba: false");
-	if (!engineExtra.empty()) y = std::regex_replace(y, std::regex("\nengine:\n"), "\nengine:\n" + engineExtra);
+	y = std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
+	                       "vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
+	y = std::regex_replace(y, std::regex("local_ba: false"),
+	                       localBa ? "local_ba: true" : "local_ba: false");
+	if (!engineExtra.empty())
+		y = std::regex_replace(y, std::regex("\nengine:\n"), "\nengine:\n" + engineExtra);
 	const auto p = dir / "cfg.yaml";
 	std::ofstream(p) << y;
 	return p;
@@ -56,9 +58,8 @@ fs::path slamConfig(const fs::path& dir, bool localBa, const std::string& engine
 
 test::CommandResult run(const fs::path& cfg, const fs::path& out, const std::string& extra = "")
 {
-	return test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() + " --config " + cfg.string() + " --quiet --out " +
-		out.string() + extra);
+	return test::runCommand(test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() +
+	                        " --config " + cfg.string() + " --quiet --out " + out.string() + extra);
 }
 
 double yamlNumber(const fs::path& runYaml, const std::string& key)
@@ -66,18 +67,20 @@ double yamlNumber(const fs::path& runYaml, const std::string& key)
 	std::ifstream f(runYaml);
 	const std::string y((std::istreambuf_iterator<char>(f)), {});
 	std::smatch m;
-	if (!std::regex_search(y, m, std::regex("\\b" + key + ": ([-0-9.eE+]+)"))) return std::nan("");
+	if (!std::regex_search(y, m, std::regex("\\b" + key + ": ([-0-9.eE+]+)")))
+		return std::nan("");
 	return std::stod(m[1]);
 }
 
 double ate(const fs::path& out, const std::string& est = "trajectory.tum")
 {
-	const auto r = test::runCommand(
-		test::bin("rasterslam-eval") + " traj --gt " + (out / "groundtruth.tum").string() + " --est " +
-		(out / est).string() + " --json");
+	const auto r = test::runCommand(test::bin("rasterslam-eval") + " traj --gt " +
+	                                (out / "groundtruth.tum").string() + " --est " +
+	                                (out / est).string() + " --json");
 	EXPECT_EQ(r.exitCode, 0) << r.output;
 	std::smatch m;
-	if (!std::regex_search(r.output, m, std::regex("\"ate_rmse_m\": ([-0-9.eE+]+)"))) return std::nan("");
+	if (!std::regex_search(r.output, m, std::regex("\"ate_rmse_m\": ([-0-9.eE+]+)")))
+		return std::nan("");
 	return std::stod(m[1]);
 }
 }  // namespace
@@ -85,13 +88,15 @@ double ate(const fs::path& out, const std::string& est = "trajectory.tum")
 TEST(Mapping, LocalMapsOverlapAndCarryTheOptimizedPoses)
 {
 	const test::ScopedTempDir dir("mapping");
-	const auto r = run(slamConfig(dir.path(), false, ""), dir / "out", " --map-out " + (dir / "map").string());
+	const auto r =
+	    run(slamConfig(dir.path(), false, ""), dir / "out", " --map-out " + (dir / "map").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	const Map map = loadMap((dir / "map").string());
 	const auto keyframes = static_cast<std::size_t>(yamlNumber(dir / "out/run.yaml", "keyframes"));
 	ASSERT_EQ(map.keyframes.size(), keyframes);
 	ASSERT_GE(map.localMaps.size(), 5u);
-	EXPECT_EQ(static_cast<std::size_t>(yamlNumber(dir / "out/run.yaml", "local_maps")), map.localMaps.size());
+	EXPECT_EQ(static_cast<std::size_t>(yamlNumber(dir / "out/run.yaml", "local_maps")),
+	          map.localMaps.size());
 
 	// Consecutive local maps share their boundary keyframe; every keyframe is in one or two.
 	LocalMap::ConstPtr prev;
@@ -137,7 +142,9 @@ TEST(Mapping, LocalMapsOverlapAndCarryTheOptimizedPoses)
 			if (std::abs(p.stamp - anchor.stamp) < 1e-6)
 			{
 				const auto& q = map.priorPoses.at(anchor.id);
-				EXPECT_LT((p.pose.translation() - Eigen::Vector3d(q.x(), q.y(), q.z())).norm(), 1e-4) << id;
+				EXPECT_LT((p.pose.translation() - Eigen::Vector3d(q.x(), q.y(), q.z())).norm(),
+				          1e-4)
+				    << id;
 				++checked;
 			}
 	}
@@ -148,7 +155,8 @@ TEST(Mapping, OnlinePosesAreThoseOfTheTrackingUntilTheFirstLoop)
 {
 	const test::ScopedTempDir dir("mapping");
 	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "slam").exitCode, 0);
-	ASSERT_EQ(run(test::sourcePath("share/rasterslam/config/default.yaml"), dir / "odo").exitCode, 0);
+	ASSERT_EQ(run(test::sourcePath("share/rasterslam/config/default.yaml"), dir / "odo").exitCode,
+	          0);
 	const auto online = io::loadTrajectory((dir / "slam/trajectory_online.tum").string());
 	const auto final = io::loadTrajectory((dir / "slam/trajectory.tum").string());
 	const auto odo = io::loadTrajectory((dir / "odo/trajectory.tum").string());
@@ -179,7 +187,9 @@ TEST(Mapping, WrongLoopEdgesAreDownweighted)
 	const test::ScopedTempDir dir("mapping");
 	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "clean").exitCode, 0);
 	// The engine's test hook replaces accepted loop edges by wrong ones (5 m, 20 deg off).
-	ASSERT_EQ(run(slamConfig(dir.path(), false, "  test_corrupt_loops: 0.3\n"), dir / "wrong").exitCode, 0);
+	ASSERT_EQ(
+	    run(slamConfig(dir.path(), false, "  test_corrupt_loops: 0.3\n"), dir / "wrong").exitCode,
+	    0);
 	const double corrupted = yamlNumber(dir / "wrong/run.yaml", "corrupted_loops_test_hook");
 	ASSERT_GE(corrupted, 1);
 	EXPECT_EQ(yamlNumber(dir / "wrong/run.yaml", "loop_edges_downweighted"), corrupted);
@@ -198,16 +208,19 @@ TEST(Mapping, LocalBaRunsAndIsDeterministic)
 		ASSERT_EQ(r.exitCode, 0) << r.output;
 	}
 	EXPECT_GE(yamlNumber(dir / "a/run.yaml", "local_ba_runs"), 5);
-	for (const auto* f : {"trajectory.kitti", "trajectory_online.tum", "loops.txt", "pose_graph.graph"})
+	for (const auto* f :
+	     {"trajectory.kitti", "trajectory_online.tum", "loops.txt", "pose_graph.graph"})
 	{
 		std::ifstream fa(dir / "a" / f), fb(dir / "b" / f);
-		const std::string sa((std::istreambuf_iterator<char>(fa)), {}), sb((std::istreambuf_iterator<char>(fb)), {});
+		const std::string sa((std::istreambuf_iterator<char>(fa)), {}),
+		    sb((std::istreambuf_iterator<char>(fb)), {});
 		EXPECT_FALSE(sa.empty()) << f;
 		EXPECT_EQ(sa, sb) << f;
 	}
 	const Map map = loadMap((dir / "a/map").string());
 	std::size_t withTracks = 0;
-	for (const auto& [id, lm] : map.localMaps) withTracks += lm->baTracks > 0;  // kept with the labels
+	for (const auto& [id, lm] : map.localMaps)
+		withTracks += lm->baTracks > 0;  // kept with the labels
 	EXPECT_GE(withTracks, map.localMaps.size() - 2);
 }
 
@@ -220,9 +233,10 @@ TEST(Mapping, UpdateOnRevisitAndCullingKeepEveryLocalMap)
 	{
 		std::ifstream in(cfg);
 		std::string y((std::istreambuf_iterator<char>(in)), {});
-		y = std::regex_replace(
-			y, std::regex("    local_ba: false"),
-			"    local_ba: false\n    cull_distance_m: 0\n    max_online_maps: 0\n    offline_dir: " + (dir / "offline").string());
+		y = std::regex_replace(y, std::regex("    local_ba: false"),
+		                       "    local_ba: false\n    cull_distance_m: 0\n    max_online_maps: "
+		                       "0\n    offline_dir: " +
+		                           (dir / "offline").string());
 		std::ofstream(cfg) << y;
 	}
 	ASSERT_EQ(run(cfg, dir / "loop", " --map-out " + (dir / "loop/map").string()).exitCode, 0);
@@ -231,13 +245,15 @@ TEST(Mapping, UpdateOnRevisitAndCullingKeepEveryLocalMap)
 	const double offline = yamlNumber(dir / "loop/run.yaml", "local_maps_offline");
 	EXPECT_GE(offline, 1);
 	EXPECT_LE(offline, loops);
-	EXPECT_EQ(static_cast<std::size_t>(offline), static_cast<std::size_t>(std::distance(
-		fs::directory_iterator(dir / "offline"), fs::directory_iterator())));
+	EXPECT_EQ(static_cast<std::size_t>(offline),
+	          static_cast<std::size_t>(std::distance(fs::directory_iterator(dir / "offline"),
+	                                                 fs::directory_iterator())));
 	const Map map = loadMap((dir / "loop/map").string());
 	std::size_t revisits = 0;
 	for (const auto& e : map.graph.edges)
 	{
-		if (e.kind != LocalMapGraph::EdgeKind::Loop) continue;
+		if (e.kind != LocalMapGraph::EdgeKind::Loop)
+			continue;
 		// The old place is offline, the new one online; both kept whole.
 		EXPECT_FALSE(map.onlineWhenSaved.count(e.from)) << e.from;
 		EXPECT_TRUE(map.onlineWhenSaved.count(e.to)) << e.to;
@@ -256,21 +272,24 @@ TEST(Mapping, UpdateOnRevisitAndCullingKeepEveryLocalMap)
 		std::string y((std::istreambuf_iterator<char>(in)), {});
 		y = std::regex_replace(y, std::regex("cull_distance_m: 0"), "cull_distance_m: 60");
 		y = std::regex_replace(y, std::regex("max_online_maps: 0"), "max_online_maps: 4");
-		y = std::regex_replace(y, std::regex("offline_dir: [^\n]*"), "offline_dir: " + (dir / "offline2").string());
+		y = std::regex_replace(y, std::regex("offline_dir: [^\n]*"),
+		                       "offline_dir: " + (dir / "offline2").string());
 		std::ofstream(cfg2) << y;
 	}
 	ASSERT_EQ(run(cfg2, dir / "cull", " --map-out " + (dir / "cull/map").string()).exitCode, 0);
 	EXPECT_EQ(yamlNumber(dir / "cull/run.yaml", "loop_edges"), loops);
 	EXPECT_LE(yamlNumber(dir / "cull/run.yaml", "local_maps_online"), 4);
 	// Online optimizations move the online part only: fewer nodes than the run's keyframes.
-	EXPECT_LT(
-		yamlNumber(dir / "cull/run.yaml", "online_optimization_nodes_mean"), yamlNumber(dir / "cull/run.yaml", "keyframes"));
+	EXPECT_LT(yamlNumber(dir / "cull/run.yaml", "online_optimization_nodes_mean"),
+	          yamlNumber(dir / "cull/run.yaml", "keyframes"));
 	// A revisited place's older local map left the place index for the newer one.
 	EXPECT_GE(yamlNumber(dir / "loop/run.yaml", "local_maps_replaced"), 1);
-	EXPECT_LT(yamlNumber(dir / "cull/run.yaml", "map_memory_mb"), yamlNumber(dir / "loop/run.yaml", "map_memory_mb"));
+	EXPECT_LT(yamlNumber(dir / "cull/run.yaml", "map_memory_mb"),
+	          yamlNumber(dir / "loop/run.yaml", "map_memory_mb"));
 	const Map culled = loadMap((dir / "cull/map").string());
 	ASSERT_EQ(culled.localMaps.size(), map.localMaps.size());
-	for (const auto& [id, lm] : culled.localMaps) EXPECT_GT(culled.data(id)->points(), 100u) << id;
+	for (const auto& [id, lm] : culled.localMaps)
+		EXPECT_GT(culled.data(id)->points(), 100u) << id;
 	// Culling changes what is in memory and which keyframes an online optimization moves
 	// (those of online local maps), not what is found: the trajectories agree closely.
 	EXPECT_NEAR(ate(dir / "cull"), ate(dir / "loop"), 0.02);
@@ -313,13 +332,17 @@ TEST(Mapping, SessionsShareAMapWithUniqueIdsAndAMapIsNotReplacedByAccident)
 	const auto info = test::runCommand(test::bin("rasterslam") + " map info " + map);
 	ASSERT_EQ(info.exitCode, 0) << info.output;
 	EXPECT_NE(info.output.find("sessions     : 2"), std::string::npos) << info.output;
-	EXPECT_NE(info.output.find("session 1: " + std::to_string(k2) + " keyframes"), std::string::npos) << info.output;
+	EXPECT_NE(info.output.find("session 1: " + std::to_string(k2) + " keyframes"),
+	          std::string::npos)
+	    << info.output;
 
 	// --overwrite replaces it with a one-session map.
 	r = run(cfg, dir / "s3", " --last 100 --map-out " + map + " --overwrite");
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_EQ(loadMap(map).sessions, 1u);
-	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map info " + (dir / "nope").string()).exitCode, 1);
+	EXPECT_EQ(
+	    test::runCommand(test::bin("rasterslam") + " map info " + (dir / "nope").string()).exitCode,
+	    1);
 	EXPECT_EQ(test::runCommand(test::bin("rasterslam") + " map bogus").exitCode, 2);
 }
 
@@ -332,11 +355,13 @@ TEST(Mapping, PruneKeepsTheNewestOfEachPlaceAndTheMapStaysUsable)
 	ASSERT_EQ(run(cfg, dir / "s2", " --map-in " + map + " --map-out " + map).exitCode, 0);
 	const Map two = loadMap(map);
 	ASSERT_EQ(two.sessions, 2u);
-	auto prune = [&](const std::string& args) {
-		return test::runCommand(
-			test::bin("rasterslam") + " map prune " + map + " --config " + cfg.string() + " --quiet " + args);
+	auto prune = [&](const std::string& args)
+	{
+		return test::runCommand(test::bin("rasterslam") + " map prune " + map + " --config " +
+		                        cfg.string() + " --quiet " + args);
 	};
-	auto bytes = [&] {
+	auto bytes = [&]
+	{
 		std::ifstream f(mapFilePath(map), std::ios::binary);
 		return std::string((std::istreambuf_iterator<char>(f)), {});
 	};
@@ -361,17 +386,22 @@ TEST(Mapping, PruneKeepsTheNewestOfEachPlaceAndTheMapStaysUsable)
 	const Map one = loadMap(map);
 	EXPECT_LT(one.localMaps.size(), two.localMaps.size());
 	std::size_t kept[2] = {0, 0}, had[2] = {0, 0};
-	for (const auto& [id, lm] : two.localMaps) ++had[lm->session];
-	for (const auto& [id, lm] : one.localMaps) ++kept[lm->session];
-	for (const auto id : two.onlineWhenSaved) EXPECT_TRUE(one.localMaps.count(id)) << id;
+	for (const auto& [id, lm] : two.localMaps)
+		++had[lm->session];
+	for (const auto& [id, lm] : one.localMaps)
+		++kept[lm->session];
+	for (const auto id : two.onlineWhenSaved)
+		EXPECT_TRUE(one.localMaps.count(id)) << id;
 	EXPECT_EQ(one.onlineWhenSaved, two.onlineWhenSaved);  // a second prune protects them too
 	EXPECT_GE(kept[1], two.onlineWhenSaved.size());
 	EXPECT_LT(kept[0], had[0] / 2);
 	// No keyframe is left without a local map, no edge without its ends (loadMap checks).
 	std::set<uint64_t> held;
-	for (const auto& [id, lm] : one.localMaps) held.insert(lm->keyframes.begin(), lm->keyframes.end());
+	for (const auto& [id, lm] : one.localMaps)
+		held.insert(lm->keyframes.begin(), lm->keyframes.end());
 	EXPECT_EQ(held.size(), one.keyframes.size());
-	for (const auto& [id, p] : one.priorPoses) EXPECT_LT(p.distanceTo(two.priorPoses.at(id)), 1e-9);
+	for (const auto& [id, p] : one.priorPoses)
+		EXPECT_LT(p.distanceTo(two.priorPoses.at(id)), 1e-9);
 
 	// The pruned map's place index knows only what is left: a third session is located in it.
 	r = run(cfg, dir / "s3", " --last 150 --map-in " + map + " --require-localization");
@@ -387,23 +417,28 @@ TEST(Mapping, ASessionIsAnchoredOnlyWhenSeveralHitsAgree)
 	// Another town (the same scenario, another seed), with verification made lax enough
 	// (8 inliers) that wrong places pass it.
 	const auto other = (dir / "other.rawlog").string();
-	auto r = test::runCommand(
-		test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") + " --seed 99 -o " + other);
+	auto r =
+	    test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+	                     test::sourcePath("rawlogs/town-vlp16.yaml") + " --seed 99 -o " + other);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	auto lax = [&](int agreeing) {
-		const auto p = slamConfig(dir.path(), false, "  anchor_min_agreeing: " + std::to_string(agreeing) + "\n");
+	auto lax = [&](int agreeing)
+	{
+		const auto p = slamConfig(dir.path(), false,
+		                          "  anchor_min_agreeing: " + std::to_string(agreeing) + "\n");
 		std::ifstream in(p);
 		std::string y((std::istreambuf_iterator<char>(in)), {});
 		y = std::regex_replace(y, std::regex("min_inliers: 25 "), "min_inliers: 8 ");
-		y = std::regex_replace(y, std::regex("relocalization_min_inliers: 18 "), "relocalization_min_inliers: 8 ");
+		y = std::regex_replace(y, std::regex("relocalization_min_inliers: 18 "),
+		                       "relocalization_min_inliers: 8 ");
 		const auto out = dir / ("lax" + std::to_string(agreeing) + ".yaml");
 		std::ofstream(out) << y;
 		return out;
 	};
-	auto runOther = [&](const fs::path& cfg, const std::string& extra) {
-		return test::runCommand(
-			test::bin("rasterslam") + " run --rawlog " + other + " --config " + cfg.string() + " --quiet --out " +
-			(dir / "s2").string() + " --map-in " + map + extra);
+	auto runOther = [&](const fs::path& cfg, const std::string& extra)
+	{
+		return test::runCommand(test::bin("rasterslam") + " run --rawlog " + other + " --config " +
+		                        cfg.string() + " --quiet --out " + (dir / "s2").string() +
+		                        " --map-in " + map + extra);
 	};
 	// One hit is enough without the check: the other town is anchored in this map (wrongly).
 	r = runOther(lax(1), "");
@@ -419,14 +454,15 @@ TEST(Mapping, ASessionIsAnchoredOnlyWhenSeveralHitsAgree)
 	EXPECT_NE(r.output.find("the map is not saved"), std::string::npos) << r.output;
 	EXPECT_GE(yamlNumber(dir / "s2/run.yaml", "prior_map_hits"), 2);
 	std::ifstream f2(mapFilePath(map), std::ios::binary);
-	EXPECT_EQ(std::string((std::istreambuf_iterator<char>(f2)), {}), before);  // the map is untouched
+	EXPECT_EQ(std::string((std::istreambuf_iterator<char>(f2)), {}),
+	          before);  // the map is untouched
 	r = runOther(lax(3), " --require-localization");
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find("--require-localization"), std::string::npos) << r.output;
 	// The same town again is anchored under the same lax settings.
-	r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() + " --first 20 --last 200 --config " + lax(3).string() +
-		" --quiet --out " + (dir / "s3").string() + " --map-in " + map + " --require-localization");
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() +
+	                     " --first 20 --last 200 --config " + lax(3).string() + " --quiet --out " +
+	                     (dir / "s3").string() + " --map-in " + map + " --require-localization");
 	EXPECT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_NE(r.output.find("rasterslam: located in the prior map"), std::string::npos) << r.output;
 }
@@ -447,7 +483,8 @@ std::string kittiEveryOther(const fs::path& dir, int parity)
 	{
 		if (frame % 2 == parity)
 		{
-			fs::create_symlink(D + mrpt::format("/velodyne/%06d.bin", frame), sub / mrpt::format("velodyne/%06d.bin", kept++));
+			fs::create_symlink(D + mrpt::format("/velodyne/%06d.bin", frame),
+			                   sub / mrpt::format("velodyne/%06d.bin", kept++));
 			po << p << "\n";
 			to << t << "\n";
 		}
@@ -457,19 +494,22 @@ std::string kittiEveryOther(const fs::path& dir, int parity)
 	to.close();
 	const auto out = (sub / "scans.rawlog").string();
 	const auto r = test::runCommand(
-		test::bin("kitti2rawlog") + " --velodyne " + (sub / "velodyne").string() + " --poses " + (sub / "poses.txt").string() +
-		" --calib " + D + "/calib.txt --times " + (sub / "times.txt").string() + " --compress 0 -o " + out);
+	    test::bin("kitti2rawlog") + " --velodyne " + (sub / "velodyne").string() + " --poses " +
+	    (sub / "poses.txt").string() + " --calib " + D + "/calib.txt --times " +
+	    (sub / "times.txt").string() + " --compress 0 -o " + out);
 	EXPECT_EQ(r.exitCode, 0) << r.output;
 	return out;
 }
 
 /** Both sessions' trajectories (or ground truths) as one, in stamp order. */
-fs::path interleave(const fs::path& a, const fs::path& b, const std::string& file, const fs::path& out)
+fs::path interleave(const fs::path& a, const fs::path& b, const std::string& file,
+                    const fs::path& out)
 {
 	auto all = io::loadTrajectory((a / file).string());
 	const auto more = io::loadTrajectory((b / file).string());
 	all.insert(all.end(), more.begin(), more.end());
-	std::sort(all.begin(), all.end(), [](const auto& x, const auto& y) { return x.stamp < y.stamp; });
+	std::sort(all.begin(), all.end(),
+	          [](const auto& x, const auto& y) { return x.stamp < y.stamp; });
 	io::saveTrajectoryTum(out.string(), all);
 	return out;
 }
@@ -483,13 +523,14 @@ TEST(Mapping, TwoRealSessionsLieInOneFrame)
 	const test::ScopedTempDir dir("mapping");
 	const auto cfg = slamConfig(dir.path(), false, "");
 	const auto map = (dir / "map").string();
-	auto r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + kittiEveryOther(dir.path(), 0) + " --config " + cfg.string() +
-		" --quiet --out " + (dir / "even").string() + " --map-out " + map);
+	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " +
+	                          kittiEveryOther(dir.path(), 0) + " --config " + cfg.string() +
+	                          " --quiet --out " + (dir / "even").string() + " --map-out " + map);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + kittiEveryOther(dir.path(), 1) + " --config " + cfg.string() +
-		" --quiet --out " + (dir / "odd").string() + " --map-in " + map + " --map-out " + map + " --require-localization");
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " +
+	                     kittiEveryOther(dir.path(), 1) + " --config " + cfg.string() +
+	                     " --quiet --out " + (dir / "odd").string() + " --map-in " + map +
+	                     " --map-out " + map + " --require-localization");
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_GE(yamlNumber(dir / "odd/run.yaml", "prior_map_loop_edges"), 2);
 	const Map both = loadMap(map);
@@ -506,13 +547,17 @@ TEST(Mapping, TwoRealSessionsLieInOneFrame)
 	// Measured: interleaved ATE 0.043 m, consecutive frames (one of each session) 0.049 m
 	// apart from the truth on average (0.115 m and 0.186 m before the sessions were linked).
 	const auto e = test::runCommand(
-		test::bin("rasterslam-eval") + " traj --json --gt " +
-		interleave(dir / "even", dir / "odd", "groundtruth.tum", dir / "gt.tum").string() + " --est " +
-		interleave(dir / "even", dir / "odd", "trajectory.tum", dir / "est.tum").string());
+	    test::bin("rasterslam-eval") + " traj --json --gt " +
+	    interleave(dir / "even", dir / "odd", "groundtruth.tum", dir / "gt.tum").string() +
+	    " --est " +
+	    interleave(dir / "even", dir / "odd", "trajectory.tum", dir / "est.tum").string());
 	ASSERT_EQ(e.exitCode, 0) << e.output;
-	auto num = [&](const std::string& key) {
+	auto num = [&](const std::string& key)
+	{
 		std::smatch m;
-		return std::regex_search(e.output, m, std::regex("\"" + key + "\": ([-0-9.eE+]+)")) ? std::stod(m[1]) : std::nan("");
+		return std::regex_search(e.output, m, std::regex("\"" + key + "\": ([-0-9.eE+]+)"))
+		           ? std::stod(m[1])
+		           : std::nan("");
 	};
 	EXPECT_EQ(num("n_associated"), 101);
 	EXPECT_LT(num("ate_rmse_m"), 0.08) << e.output;
@@ -529,20 +574,24 @@ TEST(Mapping, MapsBuiltSeparatelyAreMergedIntoOneFrame)
 	for (int parity : {0, 1})
 	{
 		const std::string name = parity ? "odd" : "even";
-		const auto r = test::runCommand(
-			test::bin("rasterslam") + " run --rawlog " + kittiEveryOther(dir.path(), parity) + " --config " + cfg.string() +
-			" --quiet --out " + (dir / name).string() + " --map-out " + (dir / ("map-" + name)).string());
+		const auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " +
+		                                kittiEveryOther(dir.path(), parity) + " --config " +
+		                                cfg.string() + " --quiet --out " + (dir / name).string() +
+		                                " --map-out " + (dir / ("map-" + name)).string());
 		ASSERT_EQ(r.exitCode, 0) << r.output;
 	}
 	const auto merged = (dir / "merged").string();
-	const auto merge = [&](const std::string& a, const std::string& b, const std::string& extra = "") {
-		return test::runCommand(
-			test::bin("rasterslam") + " map merge " + (dir / a).string() + " " + (dir / b).string() + " --out " + merged +
-			" --config " + cfg.string() + " --quiet" + extra);
+	const auto merge =
+	    [&](const std::string& a, const std::string& b, const std::string& extra = "")
+	{
+		return test::runCommand(test::bin("rasterslam") + " map merge " + (dir / a).string() + " " +
+		                        (dir / b).string() + " --out " + merged + " --config " +
+		                        cfg.string() + " --quiet" + extra);
 	};
 	auto r = merge("map-even", "map-odd");
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	const Map m = loadMap(merged), even = loadMap((dir / "map-even").string()), odd = loadMap((dir / "map-odd").string());
+	const Map m = loadMap(merged), even = loadMap((dir / "map-even").string()),
+	          odd = loadMap((dir / "map-odd").string());
 	EXPECT_EQ(m.sessions, 2u);
 	EXPECT_EQ(m.keyframes.size(), even.keyframes.size() + odd.keyframes.size());
 	EXPECT_EQ(m.localMaps.size(), even.localMaps.size() + odd.localMaps.size());
@@ -550,24 +599,30 @@ TEST(Mapping, MapsBuiltSeparatelyAreMergedIntoOneFrame)
 	ASSERT_EQ(m.sessionRecords.size(), 2u);
 	EXPECT_NE(m.sessionRecords.at(1).input.find("odd"), std::string::npos);
 	// The first map stays where it was.
-	for (const auto& [id, p] : even.priorPoses) EXPECT_LT(m.priorPoses.at(id).distanceTo(p), 1e-6) << id;
-	for (const auto& [id, k] : m.keyframes) EXPECT_EQ(k->session, id < even.nextKeyframeId() ? 0u : 1u) << id;
+	for (const auto& [id, p] : even.priorPoses)
+		EXPECT_LT(m.priorPoses.at(id).distanceTo(p), 1e-6) << id;
+	for (const auto& [id, k] : m.keyframes)
+		EXPECT_EQ(k->session, id < even.nextKeyframeId() ? 0u : 1u) << id;
 
 	// Both sessions' keyframes in one frame against the SemanticKITTI poses. Measured: ATE
 	// 0.032 m, consecutive keyframes (of different sessions, mostly) 0.042 m off on average.
-	r = test::runCommand(test::bin("rasterslam") + " map export " + merged + " --out " + (dir / "exp").string());
+	r = test::runCommand(test::bin("rasterslam") + " map export " + merged + " --out " +
+	                     (dir / "exp").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	interleave(dir / "even", dir / "odd", "groundtruth.tum", dir / "gt.tum");
 	fs::create_directories(dir / "s1");
 	fs::copy_file(dir / "exp/keyframes-s1.tum", dir / "s1/keyframes-s0.tum");
 	interleave(dir / "exp", dir / "s1", "keyframes-s0.tum", dir / "est.tum");
-	const auto j = test::runCommand(
-		test::bin("rasterslam-eval") + " traj --json --gt " + (dir / "gt.tum").string() + " --est " +
-		(dir / "est.tum").string());
+	const auto j =
+	    test::runCommand(test::bin("rasterslam-eval") + " traj --json --gt " +
+	                     (dir / "gt.tum").string() + " --est " + (dir / "est.tum").string());
 	ASSERT_EQ(j.exitCode, 0) << j.output;
-	auto num = [&](const std::string& key) {
+	auto num = [&](const std::string& key)
+	{
 		std::smatch mt;
-		return std::regex_search(j.output, mt, std::regex("\"" + key + "\": ([-0-9.eE+]+)")) ? std::stod(mt[1]) : std::nan("");
+		return std::regex_search(j.output, mt, std::regex("\"" + key + "\": ([-0-9.eE+]+)"))
+		           ? std::stod(mt[1])
+		           : std::nan("");
 	};
 	EXPECT_EQ(num("n_associated"), static_cast<double>(m.keyframes.size()));
 	EXPECT_LT(num("ate_rmse_m"), 0.08) << j.output;
@@ -591,18 +646,18 @@ TEST(Mapping, MapsOfDifferentTownsAreNotMerged)
 	const test::ScopedTempDir dir("mapping");
 	const auto cfg = slamConfig(dir.path(), false, "");
 	const auto other = (dir / "other.rawlog").string();
-	auto r = test::runCommand(
-		test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") +
-		" --seed 8 --scans 200 --compress 0 -o " + other);
+	auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+	                          test::sourcePath("rawlogs/town-vlp16.yaml") +
+	                          " --seed 8 --scans 200 --compress 0 -o " + other);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	ASSERT_EQ(run(cfg, dir / "a", " --last 199 --map-out " + (dir / "map-a").string()).exitCode, 0);
-	r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + other + " --config " + cfg.string() + " --quiet --out " +
-		(dir / "b").string() + " --map-out " + (dir / "map-b").string());
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + other + " --config " +
+	                     cfg.string() + " --quiet --out " + (dir / "b").string() + " --map-out " +
+	                     (dir / "map-b").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	r = test::runCommand(
-		test::bin("rasterslam") + " map merge " + (dir / "map-a").string() + " " + (dir / "map-b").string() + " --out " +
-		(dir / "c").string() + " --config " + cfg.string() + " --quiet");
+	r = test::runCommand(test::bin("rasterslam") + " map merge " + (dir / "map-a").string() + " " +
+	                     (dir / "map-b").string() + " --out " + (dir / "c").string() +
+	                     " --config " + cfg.string() + " --quiet");
 	EXPECT_EQ(r.exitCode, 1);
 	EXPECT_NE(r.output.find("no overlap found"), std::string::npos) << r.output;
 	EXPECT_FALSE(fs::exists(dir / "c" / "map.rsmap"));
@@ -614,12 +669,16 @@ TEST(Mapping, ExportedMapLoadsInMrptAndOtherTools)
 	mrpt::obs::registerAllClasses_mrpt_obs();
 	const test::ScopedTempDir dir("mapping");
 	const auto map = (dir / "map").string();
-	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "run", " --last 200 --map-out " + map).exitCode, 0);
-	const auto r = test::runCommand(test::bin("rasterslam") + " map export " + map + " --out " + (dir / "exp").string());
+	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "run", " --last 200 --map-out " + map)
+	              .exitCode,
+	          0);
+	const auto r = test::runCommand(test::bin("rasterslam") + " map export " + map + " --out " +
+	                                (dir / "exp").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	const Map m = loadMap(map);
 	std::size_t points = 0;
-	for (const auto& [id, lm] : m.localMaps) points += m.data(id)->points();
+	for (const auto& [id, lm] : m.localMaps)
+		points += m.data(id)->points();
 
 	// MRPT's own formats load back with MRPT: one keyframe of the simple map per local map,
 	// its point cloud whole; one graph node per keyframe at its saved pose.
@@ -629,7 +688,8 @@ TEST(Mapping, ExportedMapLoadsInMrptAndOtherTools)
 	std::size_t smPoints = 0;
 	for (std::size_t i = 0; i < sm.size(); i++)
 	{
-		const auto obs = std::get<1>(sm.get(i))->getObservationByClass<mrpt::obs::CObservationPointCloud>();
+		const auto obs =
+		    std::get<1>(sm.get(i))->getObservationByClass<mrpt::obs::CObservationPointCloud>();
 		ASSERT_TRUE(obs);
 		smPoints += obs->pointcloud->size();
 	}
@@ -637,21 +697,25 @@ TEST(Mapping, ExportedMapLoadsInMrptAndOtherTools)
 	mrpt::graphs::CNetworkOfPoses3D g;
 	g.loadFromTextFile((dir / "exp/map.graph").string());
 	ASSERT_EQ(g.nodes.size(), m.keyframes.size());
-	for (const auto& [id, p] : m.priorPoses) EXPECT_LT(g.nodes.at(id).distanceTo(p), 1e-3) << id;
+	for (const auto& [id, p] : m.priorPoses)
+		EXPECT_LT(g.nodes.at(id).distanceTo(p), 1e-3) << id;
 	EXPECT_GE(g.edges.size(), m.keyframes.size() - 1);
 
 	// The point clouds say how many points they hold in their headers; the images decode.
-	auto header = [&](const fs::path& p, const std::string& key) {
+	auto header = [&](const fs::path& p, const std::string& key)
+	{
 		std::ifstream f(p, std::ios::binary);
 		std::string line;
 		while (std::getline(f, line) && line.rfind("DATA", 0) != 0 && line != "end_header")
-			if (line.rfind(key, 0) == 0) return std::stoul(line.substr(key.size()));
+			if (line.rfind(key, 0) == 0)
+				return std::stoul(line.substr(key.size()));
 		return 0ul;
 	};
 	EXPECT_EQ(header(dir / "exp/points.pcd", "POINTS "), points);
 	EXPECT_EQ(header(dir / "exp/points.ply", "element vertex "), points);
 	const auto top = cv::imread((dir / "exp/top.png").string());
 	EXPECT_EQ(top.rows, 1000);
-	EXPECT_EQ(std::distance(fs::directory_iterator(dir / "exp/localmaps"), fs::directory_iterator()),
-			  static_cast<std::ptrdiff_t>(m.localMaps.size()));
+	EXPECT_EQ(
+	    std::distance(fs::directory_iterator(dir / "exp/localmaps"), fs::directory_iterator()),
+	    static_cast<std::ptrdiff_t>(m.localMaps.size()));
 }

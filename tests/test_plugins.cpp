@@ -61,11 +61,13 @@ TEST(PluginLoader, CreatesByNameAndChecksTheRole)
 	EXPECT_EQ(odo->role(), "odometry");
 
 	const auto unknown = errorOf([&] { loader.create<Odometry>("rasterslam::NoSuchThing"); });
-	EXPECT_NE(unknown.find("unknown odometry plugin class 'rasterslam::NoSuchThing'"), std::string::npos)
-		<< unknown;
+	EXPECT_NE(unknown.find("unknown odometry plugin class 'rasterslam::NoSuchThing'"),
+	          std::string::npos)
+	    << unknown;
 	EXPECT_NE(unknown.find("rasterslam::GicpOdometry"), std::string::npos) << unknown;  // listed
 
-	const auto wrongRole = errorOf([&] { loader.create<Odometry>("rasterslam::LevMarqOptimizer"); });
+	const auto wrongRole =
+	    errorOf([&] { loader.create<Odometry>("rasterslam::LevMarqOptimizer"); });
 	EXPECT_NE(wrongRole.find("is not a odometry plugin"), std::string::npos) << wrongRole;
 }
 
@@ -93,32 +95,56 @@ TEST(Config, ParamReaderIsStrict)
 	{
 		ParamReader p(y, "odometry.params", "cfg.yaml");
 		const auto e = errorOf([&] { p.getInt("a", 0); });  // 2.5 is not an int
-		EXPECT_NE(e.find("cfg.yaml: key 'odometry.params.a': expected an integer, got '2.5'"), std::string::npos) << e;
-		EXPECT_NE(errorOf([&] { p.getDouble("c", 0); }).find("expected a number"), std::string::npos);
-		EXPECT_NE(errorOf([&] { p.getBool("b", 0); }).find("expected true or false"), std::string::npos);
-		EXPECT_NE(errorOf([&] { p.getChoice("c", "x", {"x", "y"}); }).find("expected one of {x, y}"), std::string::npos);
+		EXPECT_NE(e.find("cfg.yaml: key 'odometry.params.a': expected an integer, got '2.5'"),
+		          std::string::npos)
+		    << e;
+		EXPECT_NE(errorOf([&] { p.getDouble("c", 0); }).find("expected a number"),
+		          std::string::npos);
+		EXPECT_NE(errorOf([&] { p.getBool("b", 0); }).find("expected true or false"),
+		          std::string::npos);
+		EXPECT_NE(errorOf(
+		              [&] {
+			              p.getChoice("c", "x", {"x", "y"});
+		              })
+		              .find("expected one of {x, y}"),
+		          std::string::npos);
 	}
 	{
 		ParamReader p(y, "odometry.params", "cfg.yaml");
 		p.getDouble("a", 0);
 		const auto e = errorOf([&] { p.finish(); });
-		EXPECT_NE(e.find("unknown key(s) in 'odometry.params': b, c, d, e"), std::string::npos) << e;
+		EXPECT_NE(e.find("unknown key(s) in 'odometry.params': b, c, d, e"), std::string::npos)
+		    << e;
 	}
 }
 
 TEST(Config, EngineRejectsBadConfigs)
 {
-	auto engineError = [](const std::string& text) {
-		return errorOf([&] { Engine e(yaml::FromText(text), "test.yaml"); });
-	};
+	auto engineError = [](const std::string& text)
+	{ return errorOf([&] { Engine e(yaml::FromText(text), "test.yaml"); }); };
 	EXPECT_EQ(engineError("odometry: {class: rasterslam::GicpOdometry}\n"), "");
-	EXPECT_NE(engineError("odometry: {class: rasterslam::Nope}\n").find("unknown odometry plugin class"), std::string::npos);
-	EXPECT_NE(engineError("optimizer: {class: rasterslam::LevMarqOptimizer}\n").find("section 'odometry' is required"), std::string::npos);
-	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry}\nodometri: {}\n").find("unknown section 'odometri'"), std::string::npos);
-	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel: 0.5}}\n").find("unknown key(s) in 'odometry.params': voxel"), std::string::npos);
-	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: big}}\n").find("'odometry.params.voxel_m': expected a number, got 'big'"), std::string::npos);
-	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: -1}}\n").find("voxel_m: must be > 0"), std::string::npos);
-	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry}\nengine: {on_bad_scan: maybe}\n").find("expected one of {error, skip}"), std::string::npos);
+	EXPECT_NE(
+	    engineError("odometry: {class: rasterslam::Nope}\n").find("unknown odometry plugin class"),
+	    std::string::npos);
+	EXPECT_NE(engineError("optimizer: {class: rasterslam::LevMarqOptimizer}\n")
+	              .find("section 'odometry' is required"),
+	          std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry}\nodometri: {}\n")
+	              .find("unknown section 'odometri'"),
+	          std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel: 0.5}}\n")
+	              .find("unknown key(s) in 'odometry.params': voxel"),
+	          std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: big}}\n")
+	              .find("'odometry.params.voxel_m': expected a number, got 'big'"),
+	          std::string::npos);
+	EXPECT_NE(engineError("odometry: {class: rasterslam::GicpOdometry, params: {voxel_m: -1}}\n")
+	              .find("voxel_m: must be > 0"),
+	          std::string::npos);
+	EXPECT_NE(
+	    engineError("odometry: {class: rasterslam::GicpOdometry}\nengine: {on_bad_scan: maybe}\n")
+	        .find("expected one of {error, skip}"),
+	    std::string::npos);
 }
 
 TEST(Config, ShippedConfigsLoad)

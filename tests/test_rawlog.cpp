@@ -35,7 +35,9 @@ std::vector<CObservation::Ptr> makeObservations(std::vector<std::vector<PointXYZ
 {
 	std::vector<CObservation::Ptr> out;
 	auto stamp = [](int k) { return mrpt::Clock::fromDouble(100.0 + 0.1 * k); };
-	auto expect = [&](const std::vector<std::array<float, 4>>& local, const mrpt::poses::CPose3D& sp) {
+	auto expect =
+	    [&](const std::vector<std::array<float, 4>>& local, const mrpt::poses::CPose3D& sp)
+	{
 		std::vector<PointXYZI> v;
 		for (const auto& p : local)
 		{
@@ -51,8 +53,10 @@ std::vector<CObservation::Ptr> makeObservations(std::vector<std::vector<PointXYZ
 		o->sensorLabel = "LIDAR";
 		o->sensorPose = kSensorPose;
 		auto m = mrpt::maps::CPointsMapXYZI::Create();
-		std::vector<std::array<float, 4>> pts = {{1, 2, 3, 0.5f}, {-4, 5, -1, 0.25f}, {10, 0, 0, 1}};
-		for (const auto& p : pts) m->insertPointRGB(p[0], p[1], p[2], p[3], 0, 0);
+		std::vector<std::array<float, 4>> pts = {
+		    {1, 2, 3, 0.5f}, {-4, 5, -1, 0.25f}, {10, 0, 0, 1}};
+		for (const auto& p : pts)
+			m->insertPointRGB(p[0], p[1], p[2], p[3], 0, 0);
 		o->pointcloud = m;
 		out.push_back(o);
 		expect(pts, kSensorPose);
@@ -62,7 +66,8 @@ std::vector<CObservation::Ptr> makeObservations(std::vector<std::vector<PointXYZ
 		o->timestamp = stamp(1);
 		o->sensorLabel = "LIDAR";
 		o->sensorPose = kSensorPose;
-		std::vector<std::array<float, 4>> pts = {{3, 1, 0.5f, 51 / 255.f}, {-2, -2, 0, 255 / 255.f}};
+		std::vector<std::array<float, 4>> pts = {{3, 1, 0.5f, 51 / 255.f},
+		                                         {-2, -2, 0, 255 / 255.f}};
 		for (const auto& p : pts)
 		{
 			o->point_cloud.x.push_back(p[0]);
@@ -85,14 +90,15 @@ std::vector<CObservation::Ptr> makeObservations(std::vector<std::vector<PointXYZ
 		o->azimuthSpan = M_PI;  // columns at -90, 0, +90 deg
 		o->rangeImage.setZero(16, 3);
 		o->intensityImage.setZero(16, 3);
-		o->rangeImage(8, 1) = 1000;	 // row 8: +1 deg, 10 m straight ahead
+		o->rangeImage(8, 1) = 1000;  // row 8: +1 deg, 10 m straight ahead
 		o->intensityImage(8, 1) = 255;
-		o->rangeImage(0, 2) = 500;	// row 0: -15 deg, 5 m to the left
+		o->rangeImage(0, 2) = 500;  // row 0: -15 deg, 5 m to the left
 		out.push_back(o);
 		const double e8 = 1.0 * M_PI / 180, e0 = -15.0 * M_PI / 180;
 		expect({{float(10 * std::cos(e8)), 0, float(10 * std::sin(e8)), 1.0f},
-				{float(5 * std::cos(e0) * std::cos(M_PI / 2)), float(5 * std::cos(e0)), float(5 * std::sin(e0)), 0}},
-			   kSensorPose);
+		        {float(5 * std::cos(e0) * std::cos(M_PI / 2)), float(5 * std::cos(e0)),
+		         float(5 * std::sin(e0)), 0}},
+		       kSensorPose);
 		// the rotating scan's points come row by row: row 0 first
 		std::swap(expected.back()[0], expected.back()[1]);
 	}
@@ -117,12 +123,15 @@ std::vector<Scan> readAll(const std::string& path, std::string* stopReason = nul
 {
 	io::RawlogSource src(path);
 	std::vector<Scan> scans;
-	while (auto s = src.next()) scans.push_back(std::move(*s));
-	if (stopReason) *stopReason = src.stopReason();
+	while (auto s = src.next())
+		scans.push_back(std::move(*s));
+	if (stopReason)
+		*stopReason = src.stopReason();
 	return scans;
 }
 
-void expectScans(const std::vector<Scan>& scans, const std::vector<std::vector<PointXYZI>>& expected)
+void expectScans(const std::vector<Scan>& scans,
+                 const std::vector<std::vector<PointXYZI>>& expected)
 {
 	ASSERT_EQ(scans.size(), expected.size());
 	for (size_t k = 0; k < scans.size(); k++)
@@ -135,17 +144,20 @@ void expectScans(const std::vector<Scan>& scans, const std::vector<std::vector<P
 			EXPECT_NEAR(scans[k].points[i].x, expected[k][i].x, 1e-3) << k << "/" << i;
 			EXPECT_NEAR(scans[k].points[i].y, expected[k][i].y, 1e-3) << k << "/" << i;
 			EXPECT_NEAR(scans[k].points[i].z, expected[k][i].z, 1e-3) << k << "/" << i;
-			EXPECT_NEAR(scans[k].points[i].intensity, expected[k][i].intensity, 1e-3) << k << "/" << i;
+			EXPECT_NEAR(scans[k].points[i].intensity, expected[k][i].intensity, 1e-3)
+			    << k << "/" << i;
 		}
 	}
 }
 
 template <class STREAM>
-void writeObjects(const std::string& path, const std::vector<mrpt::serialization::CSerializable::Ptr>& objs)
+void writeObjects(const std::string& path,
+                  const std::vector<mrpt::serialization::CSerializable::Ptr>& objs)
 {
 	STREAM f(path);
 	auto arch = mrpt::serialization::archiveFrom(f);
-	for (const auto& o : objs) arch << *o;
+	for (const auto& o : objs)
+		arch << *o;
 }
 }  // namespace
 
@@ -158,7 +170,8 @@ TEST(Rawlog, ObservationsFormatEveryScanType)
 	{
 		const auto path = (dir / (gz ? "obs.rawlog.gz" : "obs.rawlog")).string();
 		std::vector<mrpt::serialization::CSerializable::Ptr> objs(obs.begin(), obs.end());
-		if (gz) writeObjects<mrpt::io::CFileGZOutputStream>(path, objs);
+		if (gz)
+			writeObjects<mrpt::io::CFileGZOutputStream>(path, objs);
 		else
 			writeObjects<mrpt::io::CFileOutputStream>(path, objs);
 		SCOPED_TRACE(path);
@@ -180,7 +193,7 @@ TEST(Rawlog, SensoryFrameFormatWithActionsAndGroundTruth)
 		objs.push_back(acts);
 		auto sf = CSensoryFrame::Create();
 		sf->insert(obs[k]);
-		if (k % 2 == 0)	 // ground truth for every other scan, in the same frame
+		if (k % 2 == 0)  // ground truth for every other scan, in the same frame
 		{
 			auto gt = CObservationRobotPose::Create();
 			gt->timestamp = obs[k]->timestamp;
@@ -213,7 +226,8 @@ TEST(Rawlog, WriterRoundTripWithGroundTruthBeforeOrAfter)
 	{
 		in[k].stamp = 1.7e9 + 0.1 * k;
 		in[k].sensorLabel = "LIDAR";
-		for (int i = 0; i < 200; i++) in[k].points.push_back({u(rng), u(rng), u(rng), 0.5f});
+		for (int i = 0; i < 200; i++)
+			in[k].points.push_back({u(rng), u(rng), u(rng), 0.5f});
 		in[k].groundTruth = mrpt::poses::CPose3D(k, -double(k), 0.5, 0.01 * k, 0, 0);
 	}
 	for (const int level : {0, 1})
@@ -221,8 +235,9 @@ TEST(Rawlog, WriterRoundTripWithGroundTruthBeforeOrAfter)
 		const auto path = (dir / ("w" + std::to_string(level) + ".rawlog")).string();
 		{
 			io::RawlogWriter w(path, level);
-			for (const auto& s : in) w.writeScan(s);
-			EXPECT_FALSE(fs::exists(path));	 // only the temporary file until close()
+			for (const auto& s : in)
+				w.writeScan(s);
+			EXPECT_FALSE(fs::exists(path));  // only the temporary file until close()
 			w.close();
 		}
 		const auto out = readAll(path);
@@ -231,7 +246,9 @@ TEST(Rawlog, WriterRoundTripWithGroundTruthBeforeOrAfter)
 		{
 			EXPECT_NEAR(out[k].stamp, in[k].stamp, 1e-6);
 			ASSERT_TRUE(out[k].groundTruth);
-			EXPECT_NEAR((out[k].groundTruth->asVectorVal() - in[k].groundTruth->asVectorVal()).norm(), 0, 1e-9);
+			EXPECT_NEAR(
+			    (out[k].groundTruth->asVectorVal() - in[k].groundTruth->asVectorVal()).norm(), 0,
+			    1e-9);
 			ASSERT_EQ(out[k].points.size(), in[k].points.size());
 			EXPECT_FLOAT_EQ(out[k].points[17].y, in[k].points[17].y);
 		}
@@ -271,7 +288,8 @@ TEST(Rawlog, UnclosedWriterLeavesNoFileAndKeepsTheOldOne)
 	std::getline(f, line);
 	EXPECT_EQ(line, "old contents");
 	size_t files = 0;
-	for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++files;
+	for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir))
+		++files;
 	EXPECT_EQ(files, 1u);  // no temporary left behind
 }
 
@@ -282,14 +300,16 @@ TEST(Rawlog, TruncatedFileStopsAtTheDamageWithItsOffset)
 	for (size_t k = 0; k < in.size(); k++)
 	{
 		in[k].stamp = 10 + 0.1 * k;
-		for (int i = 0; i < 1000; i++) in[k].points.push_back({float(i), float(k), 0, 0});
+		for (int i = 0; i < 1000; i++)
+			in[k].points.push_back({float(i), float(k), 0, 0});
 	}
 	for (const int level : {0, 1})
 	{
 		const auto full = (dir / ("full" + std::to_string(level) + ".rawlog")).string();
 		{
 			io::RawlogWriter w(full, level);
-			for (const auto& s : in) w.writeScan(s);
+			for (const auto& s : in)
+				w.writeScan(s);
 			w.close();
 		}
 		const auto size = fs::file_size(full);
@@ -310,7 +330,8 @@ TEST(Rawlog, TruncatedFileStopsAtTheDamageWithItsOffset)
 TEST(Rawlog, BadFilesThrowNamingTheFile)
 {
 	const auto dir = test::tempDir("rawlog");
-	auto errorOf = [](const std::string& path) -> std::string {
+	auto errorOf = [](const std::string& path) -> std::string
+	{
 		try
 		{
 			readAll(path);
@@ -322,12 +343,14 @@ TEST(Rawlog, BadFilesThrowNamingTheFile)
 		return "";
 	};
 	const auto missing = (dir / "missing.rawlog").string();
-	EXPECT_NE(errorOf(missing).find("cannot open rawlog '" + missing + "': no such file"), std::string::npos);
+	EXPECT_NE(errorOf(missing).find("cannot open rawlog '" + missing + "': no such file"),
+	          std::string::npos);
 	const auto garbage = (dir / "garbage.rawlog").string();
 	{
 		std::ofstream f(garbage, std::ios::binary);
 		std::mt19937 rng(3);
-		for (int i = 0; i < 5000; i++) f.put(static_cast<char>(rng()));
+		for (int i = 0; i < 5000; i++)
+			f.put(static_cast<char>(rng()));
 	}
 	const auto e = errorOf(garbage);
 	EXPECT_NE(e.find(garbage + ": not an MRPT rawlog"), std::string::npos) << e;

@@ -8,8 +8,8 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <map>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "test_support.h"
@@ -36,13 +36,15 @@ std::vector<RelocLine> readReloc(const fs::path& p)
 	std::string line;
 	while (std::getline(f, line))
 	{
-		if (line.empty() || line[0] == '#') continue;
+		if (line.empty() || line[0] == '#')
+			continue;
 		std::istringstream ss(line);
 		RelocLine r;
 		std::string status;
 		unsigned long long lm, kf;
 		double score, x, y, z, qx, qy, qz, qw;
-		ss >> r.stamp >> status >> r.reason >> lm >> kf >> r.kfStamp >> score >> r.inliers >> x >> y >> z >> qx >> qy >> qz >> qw;
+		ss >> r.stamp >> status >> r.reason >> lm >> kf >> r.kfStamp >> score >> r.inliers >> x >>
+		    y >> z >> qx >> qy >> qz >> qw;
 		EXPECT_FALSE(ss.fail()) << line;
 		r.found = status == "found";
 		r.pose.linear() = Eigen::Quaterniond(qw, qx, qy, qz).toRotationMatrix();
@@ -55,7 +57,8 @@ std::vector<RelocLine> readReloc(const fs::path& p)
 Eigen::Isometry3d poseAt(const io::Trajectory& t, double stamp)
 {
 	for (const auto& p : t)
-		if (std::abs(p.stamp - stamp) < 1e-4) return p.pose;
+		if (std::abs(p.stamp - stamp) < 1e-4)
+			return p.pose;
 	ADD_FAILURE() << "no pose at " << stamp;
 	return Eigen::Isometry3d::Identity();
 }
@@ -64,7 +67,8 @@ Eigen::Isometry3d poseAt(const io::Trajectory& t, double stamp)
 TEST(Relocalization, Kitti05RevisitAmongDistractors)
 {
 	RASTERSLAM_REQUIRE_SHARED_DATA();
-	const auto D00 = test::sharedData("kitti00-0000-0100"), D05 = test::sharedData("kitti05-revisit-0540-1319");
+	const auto D00 = test::sharedData("kitti00-0000-0100"),
+	           D05 = test::sharedData("kitti05-revisit-0540-1319");
 	const auto dir = test::tempDir("reloc");
 	// Map input: KITTI 00 scans 0-100, then KITTI 05 frame 540 (a jump: tracking restarts).
 	const auto mapRawlog = (dir / "map.rawlog").string(), query = (dir / "query.rawlog").string();
@@ -92,14 +96,15 @@ TEST(Relocalization, Kitti05RevisitAmongDistractors)
 		q.close();
 	}
 	const auto slam = test::sourcePath("share/rasterslam/config/slam.yaml");
-	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + mapRawlog + " --config " + slam +
-							  " --quiet --out " + (dir / "run").string() + " --map-out " + (dir / "map").string());
+	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + mapRawlog +
+	                          " --config " + slam + " --quiet --out " + (dir / "run").string() +
+	                          " --map-out " + (dir / "map").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	ASSERT_TRUE(fs::exists(dir / "map" / "map.rsmap"));
 	EXPECT_TRUE(fs::exists(dir / "map" / "localmaps" / "0000.png"));
 
-	r = test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "map").string() + " --rawlog " + query +
-						 " --out " + (dir / "reloc").string());
+	r = test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "map").string() +
+	                     " --rawlog " + query + " --out " + (dir / "reloc").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	const auto lines = readReloc(dir / "reloc" / "relocalization.txt");
 	ASSERT_EQ(lines.size(), 1u);
@@ -108,14 +113,16 @@ TEST(Relocalization, Kitti05RevisitAmongDistractors)
 
 	// Ground truth (data README, official poses): pose of 1319 in the frame of 540.
 	Eigen::Matrix4d M;
-	M << 0.883776, -0.466986, -0.0294015, 7.34227, 0.467908, 0.882265, 0.051687, 4.89425, 0.00180279,
-		-0.0594369, 0.99823, 0.0543196, 0, 0, 0, 1;
+	M << 0.883776, -0.466986, -0.0294015, 7.34227, 0.467908, 0.882265, 0.051687, 4.89425,
+	    0.00180279, -0.0594369, 0.99823, 0.0543196, 0, 0, 0, 1;
 	const Eigen::Isometry3d truth(M);
 	const auto est = io::loadTrajectory((dir / "run" / "trajectory.tum").string());
 	const Eigen::Isometry3d rel = poseAt(est, 200).inverse() * lines[0].pose;
 	const double dt = (rel.translation() - truth.translation()).norm();
-	const double da = Eigen::AngleAxisd(rel.linear().transpose() * truth.linear()).angle() * 180 / M_PI;
-	std::cout << "KITTI-05 1319 in 540: " << dt << " m, " << da << " deg, " << lines[0].inliers << " inliers\n";
+	const double da =
+	    Eigen::AngleAxisd(rel.linear().transpose() * truth.linear()).angle() * 180 / M_PI;
+	std::cout << "KITTI-05 1319 in 540: " << dt << " m, " << da << " deg, " << lines[0].inliers
+	          << " inliers\n";
 	EXPECT_LT(dt, 0.3);
 	EXPECT_LT(da, 1.0);
 }
@@ -125,12 +132,16 @@ TEST(Relocalization, BadMapIsReported)
 	const auto dir = test::tempDir("reloc");
 	fs::create_directories(dir / "map");
 	std::ofstream(dir / "map" / "map.rsmap") << "not a map";
-	const auto r = test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "map").string() +
-									" --rawlog x.rawlog --out " + (dir / "o").string());
+	const auto r =
+	    test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "map").string() +
+	                     " --rawlog x.rawlog --out " + (dir / "o").string());
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("cannot read map '" + (dir / "map" / "map.rsmap").string() + "'"), std::string::npos) << r.output;
-	const auto r2 = test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "none").string() +
-									 " --rawlog x.rawlog --out " + (dir / "o").string());
+	EXPECT_NE(r.output.find("cannot read map '" + (dir / "map" / "map.rsmap").string() + "'"),
+	          std::string::npos)
+	    << r.output;
+	const auto r2 =
+	    test::runCommand(test::bin("rasterslam") + " relocalize --map " + (dir / "none").string() +
+	                     " --rawlog x.rawlog --out " + (dir / "o").string());
 	EXPECT_EQ(r2.exitCode, 1);
 	EXPECT_NE(r2.output.find("does not exist"), std::string::npos) << r2.output;
 }
@@ -140,20 +151,26 @@ namespace
 /** The simulated VLP-16 drive (a 199 m loop), read once per test program. */
 const std::vector<Scan>& vlp16Scans()
 {
-	static const std::vector<Scan> scans = [] {
-		const auto p = (fs::temp_directory_path() / ("rasterslam-reloc-vlp16-" + std::to_string(::getpid()) + ".rawlog")).string();
-		const auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " + test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
+	static const std::vector<Scan> scans = []
+	{
+		const auto p = (fs::temp_directory_path() /
+		                ("rasterslam-reloc-vlp16-" + std::to_string(::getpid()) + ".rawlog"))
+		                   .string();
+		const auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+		                                test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		std::vector<Scan> v;
 		io::RawlogSource src(p);
-		while (auto s = src.next()) v.push_back(std::move(*s));
+		while (auto s = src.next())
+			v.push_back(std::move(*s));
 		fs::remove(p);
 		return v;
 	}();
 	return scans;
 }
 
-std::string writeScans(const fs::path& path, const std::vector<std::pair<std::size_t, double>>& which)
+std::string writeScans(const fs::path& path,
+                       const std::vector<std::pair<std::size_t, double>>& which)
 {
 	io::RawlogWriter w(path.string(), 1);
 	for (const auto& [k, stamp] : which)
@@ -169,19 +186,24 @@ std::string writeScans(const fs::path& path, const std::vector<std::pair<std::si
 /** Largest distance between the run's poses and the ground truth expressed in the frame of
  *  the simulator's first scan (the map frame), over the scans of `out` whose stamps map to
  *  simulator scans through `stampToScan`. */
-std::vector<double> errorsInMapFrame(const fs::path& out, const std::map<long, std::size_t>& stampToScan)
+std::vector<double> errorsInMapFrame(const fs::path& out,
+                                     const std::map<long, std::size_t>& stampToScan)
 {
 	const auto est = io::loadTrajectory((out / "trajectory.tum").string());
 	const auto& scans = vlp16Scans();
-	const auto g0inv = scans.front().groundTruth->getInverseHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
+	const auto g0inv =
+	    scans.front().groundTruth->getInverseHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
 	std::vector<double> errs;
 	for (const auto& p : est)
 	{
 		const auto it = stampToScan.find(std::lround(p.stamp * 10));
-		if (it == stampToScan.end()) continue;
-		const auto g = scans[it->second].groundTruth->getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
+		if (it == stampToScan.end())
+			continue;
+		const auto g =
+		    scans[it->second].groundTruth->getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
 		const auto rel = g0inv * g;
-		errs.push_back((p.pose.translation() - Eigen::Vector3d(rel(0, 3), rel(1, 3), rel(2, 3))).norm());
+		errs.push_back(
+		    (p.pose.translation() - Eigen::Vector3d(rel(0, 3), rel(1, 3), rel(2, 3))).norm());
 	}
 	std::sort(errs.begin(), errs.end());
 	return errs;
@@ -193,18 +215,22 @@ TEST(Relocalization, SessionInAPriorMap)
 	const auto dir = test::tempDir("reloc");
 	std::vector<std::pair<std::size_t, double>> first, second;
 	std::map<long, std::size_t> stampToScan;
-	for (std::size_t k = 0; k < 300; k++) first.emplace_back(k, 10 + 0.1 * k);
+	for (std::size_t k = 0; k < 300; k++)
+		first.emplace_back(k, 10 + 0.1 * k);
 	for (std::size_t k = 320; k < 400; k++)
 	{
 		second.emplace_back(k, 1000 + 0.1 * k);  // another day
 		stampToScan[std::lround((1000 + 0.1 * k) * 10)] = k;
 	}
 	const auto slam = test::sourcePath("share/rasterslam/config/slam.yaml");
-	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + writeScans(dir / "a.rawlog", first) + " --config " +
-							  slam + " --quiet --out " + (dir / "a").string() + " --map-out " + (dir / "map").string());
+	auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " +
+	                          writeScans(dir / "a.rawlog", first) + " --config " + slam +
+	                          " --quiet --out " + (dir / "a").string() + " --map-out " +
+	                          (dir / "map").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + writeScans(dir / "b.rawlog", second) + " --config " +
-						 slam + " --out " + (dir / "b").string() + " --map-in " + (dir / "map").string());
+	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " +
+	                     writeScans(dir / "b.rawlog", second) + " --config " + slam + " --out " +
+	                     (dir / "b").string() + " --map-in " + (dir / "map").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_NE(r.output.find("located in the prior map"), std::string::npos) << r.output;
 	// The second session's poses are in the first session's frame. Measured: median 0.45 m,
@@ -221,15 +247,17 @@ TEST(Relocalization, AJumpInTheRawlogIsRelocalized)
 	// Two recordings one after the other: the drive, then the first 60 scans again.
 	std::vector<std::pair<std::size_t, double>> scans;
 	std::map<long, std::size_t> stampToScan;
-	for (std::size_t k = 0; k < 300; k++) scans.emplace_back(k, 10 + 0.1 * k);
+	for (std::size_t k = 0; k < 300; k++)
+		scans.emplace_back(k, 10 + 0.1 * k);
 	for (std::size_t k = 0; k < 60; k++)
 	{
 		scans.emplace_back(k, 500 + 0.1 * k);
 		stampToScan[std::lround((500 + 0.1 * k) * 10)] = k;
 	}
-	const auto r = test::runCommand(
-		test::bin("rasterslam") + " run --rawlog " + writeScans(dir / "j.rawlog", scans) + " --config " +
-		test::sourcePath("share/rasterslam/config/slam.yaml") + " --out " + (dir / "j").string());
+	const auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " +
+	                                writeScans(dir / "j.rawlog", scans) + " --config " +
+	                                test::sourcePath("share/rasterslam/config/slam.yaml") +
+	                                " --out " + (dir / "j").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_NE(r.output.find("relocalized in local map"), std::string::npos) << r.output;
 	const auto errs = errorsInMapFrame(dir / "j", stampToScan);

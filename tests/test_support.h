@@ -2,7 +2,6 @@
 #pragma once
 
 #include <gtest/gtest.h>
-
 #include <unistd.h>
 
 #include <cstdlib>
@@ -20,20 +19,23 @@ inline std::string sharedData(const std::string& sub = "")
 	const std::filesystem::path p = std::filesystem::path(RASTERSLAM_SHARED_DATA_DIR) / sub;
 	return p.string();
 }
-inline bool sharedDataAvailable() { return std::filesystem::is_directory(RASTERSLAM_SHARED_DATA_DIR); }
+inline bool sharedDataAvailable()
+{
+	return std::filesystem::is_directory(RASTERSLAM_SHARED_DATA_DIR);
+}
 
-#define RASTERSLAM_REQUIRE_SHARED_DATA()                                                   \
-	do                                                                                     \
-	{                                                                                      \
-		if (!rasterslam::test::sharedDataAvailable())                                      \
-		{                                                                                  \
-			if (std::getenv("CI"))                                                         \
-				FAIL() << "CI: the reference data folder " << RASTERSLAM_SHARED_DATA_DIR   \
-					   << " is missing (../shared/data beside the checkout)";              \
-			else                                                                           \
-				GTEST_SKIP() << "reference data " << RASTERSLAM_SHARED_DATA_DIR            \
-							 << " not found (../shared/data beside the checkout); skipped"; \
-		}                                                                                  \
+#define RASTERSLAM_REQUIRE_SHARED_DATA()                                                    \
+	do                                                                                      \
+	{                                                                                       \
+		if (!rasterslam::test::sharedDataAvailable())                                       \
+		{                                                                                   \
+			if (std::getenv("CI"))                                                          \
+				FAIL() << "CI: the reference data folder " << RASTERSLAM_SHARED_DATA_DIR    \
+				       << " is missing (../shared/data beside the checkout)";               \
+			else                                                                            \
+				GTEST_SKIP() << "reference data " << RASTERSLAM_SHARED_DATA_DIR             \
+				             << " not found (../shared/data beside the checkout); skipped"; \
+		}                                                                                   \
 	} while (0)
 
 /** Removes a file or folder when the test program ends (also after failed tests). */
@@ -46,7 +48,8 @@ inline void removeAtExit(const std::filesystem::path& p)
 		~Registry()
 		{
 			std::error_code ec;
-			for (const auto& q : paths) std::filesystem::remove_all(q, ec);
+			for (const auto& q : paths)
+				std::filesystem::remove_all(q, ec);
 		}
 	};
 	static Registry registry;
@@ -60,8 +63,8 @@ inline std::filesystem::path tempDir(const std::string& tag)
 {
 	const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
 	auto p = std::filesystem::temp_directory_path() /
-		("rasterslam-test-" + tag + "-" + std::string(info ? info->name() : "x") + "-" +
-		 std::to_string(::getpid()));
+	         ("rasterslam-test-" + tag + "-" + std::string(info ? info->name() : "x") + "-" +
+	          std::to_string(::getpid()));
 	std::filesystem::remove_all(p);
 	std::filesystem::create_directories(p);
 	removeAtExit(p);
@@ -90,8 +93,9 @@ class ScopedTempDir
 
 }  // namespace rasterslam::test
 
-#include <array>
 #include <sys/wait.h>
+
+#include <array>
 
 namespace rasterslam::test
 {
@@ -106,17 +110,22 @@ inline CommandResult runCommand(const std::string& cmd)
 {
 	CommandResult r;
 	FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-	if (!p) return r;
+	if (!p)
+		return r;
 	std::array<char, 4096> buf{};
 	size_t n = 0;
-	while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+	while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0)
+		r.output.append(buf.data(), n);
 	const int st = ::pclose(p);
 	r.exitCode = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 	return r;
 }
 
 /** A program of the build tree (build/bin). */
-inline std::string bin(const std::string& name) { return std::string(RASTERSLAM_BIN_DIR) + "/" + name; }
+inline std::string bin(const std::string& name)
+{
+	return std::string(RASTERSLAM_BIN_DIR) + "/" + name;
+}
 
 /** A file of the source tree. */
 inline std::string sourcePath(const std::string& rel)

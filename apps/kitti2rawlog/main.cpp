@@ -69,7 +69,8 @@ void correctElevation(std::vector<PointXYZI>& pts, double deg)
 	for (auto& p : pts)
 	{
 		const double rh = std::hypot(p.x, p.y);
-		if (rh < 1e-9) continue;
+		if (rh < 1e-9)
+			continue;
 		// In the vertical plane of the point: (rh, z) rotated by a.
 		const double rh2 = ca * rh - sa * p.z, z2 = sa * rh + ca * p.z;
 		p.x = static_cast<float>(p.x * rh2 / rh);
@@ -84,7 +85,8 @@ std::size_t parseIndex(const std::string& opt, const std::string& v)
 	{
 		std::size_t pos = 0;
 		const long long n = std::stoll(v, &pos);
-		if (pos != v.size() || n < 0) throw std::invalid_argument(v);
+		if (pos != v.size() || n < 0)
+			throw std::invalid_argument(v);
 		return static_cast<std::size_t>(n);
 	}
 	catch (const std::exception&)
@@ -104,8 +106,10 @@ int main(int argc, char** argv)
 	for (int i = 1; i < argc; i++)
 	{
 		const std::string a = argv[i];
-		auto value = [&]() -> std::string {
-			if (i + 1 >= argc) usageError(a + " needs a value");
+		auto value = [&]() -> std::string
+		{
+			if (i + 1 >= argc)
+				usageError(a + " needs a value");
 			return argv[++i];
 		};
 		if (a == "-h" || a == "--help")
@@ -113,7 +117,8 @@ int main(int argc, char** argv)
 			std::cout << kUsage;
 			return 0;
 		}
-		else if (a == "--velodyne") velodyne = value();
+		else if (a == "--velodyne")
+			velodyne = value();
 		else if (a == "--sequence")
 			sequence = value();
 		else if (a == "-o" || a == "--out")
@@ -136,27 +141,34 @@ int main(int argc, char** argv)
 			char* end = nullptr;
 			verticalCorrection_deg = std::strtod(v.c_str(), &end);
 			if (end != v.c_str() + v.size() || !std::isfinite(verticalCorrection_deg) ||
-				std::abs(verticalCorrection_deg) > 5)
+			    std::abs(verticalCorrection_deg) > 5)
 				usageError("--vertical-correction-deg expects a number of degrees in [-5, 5]");
 		}
 		else if (a == "--compress")
 		{
 			const auto v = value();
-			if (v.size() != 1 || v[0] < '0' || v[0] > '9') usageError("--compress expects 0..9");
+			if (v.size() != 1 || v[0] < '0' || v[0] > '9')
+				usageError("--compress expects 0..9");
 			compress = v[0] - '0';
 		}
 		else
 			usageError("unknown option '" + a + "'");
 	}
-	if (out.empty()) usageError("-o OUT.rawlog is required");
-	if (velodyne.empty() == sequence.empty()) usageError("give exactly one of --velodyne or --sequence");
+	if (out.empty())
+		usageError("-o OUT.rawlog is required");
+	if (velodyne.empty() == sequence.empty())
+		usageError("give exactly one of --velodyne or --sequence");
 	if (!sequence.empty())
 	{
 		velodyne = (fs::path(sequence) / "velodyne").string();
-		auto ifExists = [](const fs::path& p) { return fs::exists(p) ? p.string() : std::string(); };
-		if (timesFile.empty()) timesFile = ifExists(fs::path(sequence) / "times.txt");
-		if (calibFile.empty()) calibFile = ifExists(fs::path(sequence) / "calib.txt");
-		if (posesFile.empty()) posesFile = ifExists(fs::path(sequence) / "poses.txt");
+		auto ifExists = [](const fs::path& p)
+		{ return fs::exists(p) ? p.string() : std::string(); };
+		if (timesFile.empty())
+			timesFile = ifExists(fs::path(sequence) / "times.txt");
+		if (calibFile.empty())
+			calibFile = ifExists(fs::path(sequence) / "calib.txt");
+		if (posesFile.empty())
+			posesFile = ifExists(fs::path(sequence) / "poses.txt");
 		if (posesFile.empty())
 		{
 			const auto seqName = fs::path(sequence).lexically_normal().filename().string();
@@ -164,10 +176,12 @@ int main(int argc, char** argv)
 		}
 	}
 	if (external && verticalCorrection_deg != 0)
-		usageError("--vertical-correction-deg changes the points: it cannot be used with --external");
+		usageError(
+		    "--vertical-correction-deg changes the points: it cannot be used with --external");
 	if (!posesFile.empty() && calibFile.empty())
-		usageError("--poses needs --calib: KITTI poses are in the cam0 frame, and Tr turns them "
-				   "into Velodyne-frame poses");
+		usageError(
+		    "--poses needs --calib: KITTI poses are in the cam0 frame, and Tr turns them "
+		    "into Velodyne-frame poses");
 
 	try
 	{
@@ -177,9 +191,8 @@ int main(int argc, char** argv)
 		const std::size_t i0 = first.value_or(0);
 		const std::size_t i1 = std::min(last.value_or(bins.size() - 1), bins.size() - 1);
 		if (i0 > i1)
-			throw std::runtime_error(
-				"--first " + std::to_string(i0) + " is past the last scan (" +
-				std::to_string(bins.size() - 1) + ") or --last");
+			throw std::runtime_error("--first " + std::to_string(i0) + " is past the last scan (" +
+			                         std::to_string(bins.size() - 1) + ") or --last");
 
 		std::vector<double> times;
 		if (!timesFile.empty())
@@ -187,19 +200,19 @@ int main(int argc, char** argv)
 			times = io::loadKittiTimes(timesFile);
 			if (times.size() < bins.size())
 				throw std::runtime_error(
-					"times file '" + timesFile + "' has " + std::to_string(times.size()) +
-					" lines for " + std::to_string(bins.size()) + " scans in '" + velodyne + "'");
+				    "times file '" + timesFile + "' has " + std::to_string(times.size()) +
+				    " lines for " + std::to_string(bins.size()) + " scans in '" + velodyne + "'");
 		}
 		io::Trajectory gt;
 		if (!posesFile.empty())
 		{
 			gt = io::kittiCameraToVelodyne(
-				io::loadTrajectory(posesFile, io::TrajectoryFormat::Kitti),
-				io::loadKittiCalibTr(calibFile));
+			    io::loadTrajectory(posesFile, io::TrajectoryFormat::Kitti),
+			    io::loadKittiCalibTr(calibFile));
 			if (gt.size() < bins.size())
 				throw std::runtime_error(
-					"poses file '" + posesFile + "' has " + std::to_string(gt.size()) +
-					" poses for " + std::to_string(bins.size()) + " scans in '" + velodyne + "'");
+				    "poses file '" + posesFile + "' has " + std::to_string(gt.size()) +
+				    " poses for " + std::to_string(bins.size()) + " scans in '" + velodyne + "'");
 		}
 
 		io::RawlogWriter writer(out, compress);
@@ -210,11 +223,13 @@ int main(int argc, char** argv)
 			scan.index = i;
 			scan.stamp = times.empty() ? 0.1 * static_cast<double>(i) : times[i];
 			scan.sensorLabel = "LIDAR";
-			if (!gt.empty()) scan.groundTruth = toPose(gt[i].pose);
+			if (!gt.empty())
+				scan.groundTruth = toPose(gt[i].pose);
 			if (!external)
 			{
 				scan.points = io::loadKittiBin(bins[i]);
-				if (verticalCorrection_deg != 0) correctElevation(scan.points, verticalCorrection_deg);
+				if (verticalCorrection_deg != 0)
+					correctElevation(scan.points, verticalCorrection_deg);
 				writer.writeScan(scan);
 			}
 			else
@@ -224,8 +239,8 @@ int main(int argc, char** argv)
 				obs.sensorLabel = scan.sensorLabel;
 				obs.pointcloud = mrpt::maps::CPointsMapXYZI::Create();
 				obs.setAsExternalStorage(
-					fs::absolute(bins[i]).lexically_normal().string(),
-					mrpt::obs::CObservationPointCloud::ExternalStorageFormat::KittiBinFile);
+				    fs::absolute(bins[i]).lexically_normal().string(),
+				    mrpt::obs::CObservationPointCloud::ExternalStorageFormat::KittiBinFile);
 				writer.write(obs);
 				if (scan.groundTruth)
 				{
@@ -242,12 +257,12 @@ int main(int argc, char** argv)
 		}
 		writer.close();
 		const double s =
-			std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-		if (isatty(2)) std::fprintf(stderr, "\n");
-		std::printf(
-			"kitti2rawlog: wrote %zu scans%s (%s) to %s in %.1f s\n", i1 - i0 + 1,
-			gt.empty() ? "" : " with ground truth", external ? "external .bin references" : "embedded points",
-			out.c_str(), s);
+		    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+		if (isatty(2))
+			std::fprintf(stderr, "\n");
+		std::printf("kitti2rawlog: wrote %zu scans%s (%s) to %s in %.1f s\n", i1 - i0 + 1,
+		            gt.empty() ? "" : " with ground truth",
+		            external ? "external .bin references" : "embedded points", out.c_str(), s);
 	}
 	catch (const std::exception& e)
 	{

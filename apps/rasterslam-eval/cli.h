@@ -18,7 +18,6 @@
 #include <string>
 #include <vector>
 
-
 namespace rasterslam_eval_cli
 {
 namespace io = rasterslam::io;

@@ -12,7 +12,7 @@ namespace rasterslam_eval_cli
 namespace
 {
 const char* kLocalMapsUsage =
-	R"(Usage: rasterslam-eval localmaps --map DIR --gt G [options]
+    R"(Usage: rasterslam-eval localmaps --map DIR --gt G [options]
 
 Relative errors inside local maps: for every local map of the map DIR (written by rasterslam
 run --map-out) and every pair of its keyframes, the keyframes' relative pose against the
@@ -30,15 +30,18 @@ Exit codes: 0 success, 1 bad input file, 2 bad command line.
 
 double median(std::vector<double> v)
 {
-	if (v.empty()) return std::nan("");
+	if (v.empty())
+		return std::nan("");
 	std::sort(v.begin(), v.end());
 	return v[v.size() / 2];
 }
 double mean(const std::vector<double>& v)
 {
-	if (v.empty()) return std::nan("");
+	if (v.empty())
+		return std::nan("");
 	double s = 0;
-	for (const double x : v) s += x;
+	for (const double x : v)
+		s += x;
 	return s / static_cast<double>(v.size());
 }
 }  // namespace
@@ -56,13 +59,18 @@ int runLocalMaps(int argc, char** argv)
 	const double maxDt = o.number("--max-dt", 0.02);
 	const auto map = rasterslam::loadMap(mapDir);
 	const auto gt = io::loadTrajectory(gtFile);
-	if (gt.empty()) throw std::runtime_error("'" + gtFile + "' holds no pose");
-	auto gtAt = [&](double stamp) -> const Eigen::Isometry3d* {
-		const auto it = std::lower_bound(
-			gt.begin(), gt.end(), stamp, [](const io::StampedPose& p, double t) { return p.stamp < t; });
+	if (gt.empty())
+		throw std::runtime_error("'" + gtFile + "' holds no pose");
+	auto gtAt = [&](double stamp) -> const Eigen::Isometry3d*
+	{
+		const auto it =
+		    std::lower_bound(gt.begin(), gt.end(), stamp,
+		                     [](const io::StampedPose& p, double t) { return p.stamp < t; });
 		const io::StampedPose* best = nullptr;
-		if (it != gt.end()) best = &*it;
-		if (it != gt.begin() && (!best || std::abs(std::prev(it)->stamp - stamp) < std::abs(best->stamp - stamp)))
+		if (it != gt.end())
+			best = &*it;
+		if (it != gt.begin() &&
+		    (!best || std::abs(std::prev(it)->stamp - stamp) < std::abs(best->stamp - stamp)))
 			best = &*std::prev(it);
 		return best && std::abs(best->stamp - stamp) <= maxDt ? &best->pose : nullptr;
 	};
@@ -70,7 +78,8 @@ int runLocalMaps(int argc, char** argv)
 	std::size_t maps = 0, missing = 0;
 	for (const auto& [id, lm] : map.localMaps)
 	{
-		if (lm->keyframes.size() < 2) continue;
+		if (lm->keyframes.size() < 2)
+			continue;
 		++maps;
 		if (lm->baTracks > 0)
 		{
@@ -90,39 +99,46 @@ int runLocalMaps(int argc, char** argv)
 					++missing;
 					continue;
 				}
-				const Eigen::Isometry3d est = rasterslam::toIsometry(map.priorPoses.at(ki.id)).inverse() *
-					rasterslam::toIsometry(map.priorPoses.at(kj.id));
+				const Eigen::Isometry3d est =
+				    rasterslam::toIsometry(map.priorPoses.at(ki.id)).inverse() *
+				    rasterslam::toIsometry(map.priorPoses.at(kj.id));
 				const Eigen::Isometry3d truth = gi->inverse() * *gj;
 				const Eigen::Isometry3d d = truth.inverse() * est;
 				et.push_back(d.translation().norm());
 				er.push_back(Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI);
 				exy.push_back(d.translation().head<2>().norm());
 				ez.push_back(std::abs(d.translation().z()));
-				eyaw.push_back(std::abs(std::atan2(d.linear()(1, 0), d.linear()(0, 0))) * 180 / M_PI);
+				eyaw.push_back(std::abs(std::atan2(d.linear()(1, 0), d.linear()(0, 0))) * 180 /
+				               M_PI);
 			}
 	}
-	if (et.empty()) throw std::runtime_error("no keyframe pair of a local map has ground truth");
+	if (et.empty())
+		throw std::runtime_error("no keyframe pair of a local map has ground truth");
 	if (o.flag("--json"))
 	{
-		std::cout << "{\"local_maps\": " << maps << ", \"pairs\": " << et.size() << ", \"pairs_without_gt\": " << missing
-				  << ", \"trans_err_mean_m\": " << jsonNumber(mean(et)) << ", \"trans_err_median_m\": "
-				  << jsonNumber(median(et)) << ", \"rot_err_mean_deg\": " << jsonNumber(mean(er)) << ", \"horizontal_err_mean_m\": "
-				  << jsonNumber(mean(exy)) << ", \"vertical_err_mean_m\": " << jsonNumber(mean(ez))
-				  << ", \"yaw_err_mean_deg\": " << jsonNumber(mean(eyaw))
-				  << ", \"ba_maps\": " << tracks.size() << ", \"ba_tracks_mean\": " << jsonNumber(mean(tracks), !tracks.empty())
-				  << ", \"ba_rms_before_m\": " << jsonNumber(mean(rms0), !rms0.empty())
-				  << ", \"ba_rms_after_m\": " << jsonNumber(mean(rms1), !rms1.empty()) << "}\n";
+		std::cout << "{\"local_maps\": " << maps << ", \"pairs\": " << et.size()
+		          << ", \"pairs_without_gt\": " << missing
+		          << ", \"trans_err_mean_m\": " << jsonNumber(mean(et))
+		          << ", \"trans_err_median_m\": " << jsonNumber(median(et))
+		          << ", \"rot_err_mean_deg\": " << jsonNumber(mean(er))
+		          << ", \"horizontal_err_mean_m\": " << jsonNumber(mean(exy))
+		          << ", \"vertical_err_mean_m\": " << jsonNumber(mean(ez))
+		          << ", \"yaw_err_mean_deg\": " << jsonNumber(mean(eyaw))
+		          << ", \"ba_maps\": " << tracks.size()
+		          << ", \"ba_tracks_mean\": " << jsonNumber(mean(tracks), !tracks.empty())
+		          << ", \"ba_rms_before_m\": " << jsonNumber(mean(rms0), !rms0.empty())
+		          << ", \"ba_rms_after_m\": " << jsonNumber(mean(rms1), !rms1.empty()) << "}\n";
 		return 0;
 	}
 	std::printf(
-		"local maps   : %zu with 2 or more keyframes, %zu keyframe pairs (%zu without ground truth)\n"
-		"relative err: translation mean %.4f m, median %.4f m; rotation mean %.4f deg\n"
-		"  of which  : horizontal %.4f m, vertical %.4f m, yaw %.4f deg\n",
-		maps, et.size(), missing, mean(et), median(et), mean(er), mean(exy), mean(ez), mean(eyaw));
+	    "local maps   : %zu with 2 or more keyframes, %zu keyframe pairs (%zu without ground "
+	    "truth)\n"
+	    "relative err: translation mean %.4f m, median %.4f m; rotation mean %.4f deg\n"
+	    "  of which  : horizontal %.4f m, vertical %.4f m, yaw %.4f deg\n",
+	    maps, et.size(), missing, mean(et), median(et), mean(er), mean(exy), mean(ez), mean(eyaw));
 	if (!tracks.empty())
-		std::printf(
-			"local BA    : %zu maps, %.0f tracks a map, RMS residual %.3f -> %.3f m\n", tracks.size(), mean(tracks),
-			mean(rms0), mean(rms1));
+		std::printf("local BA    : %zu maps, %.0f tracks a map, RMS residual %.3f -> %.3f m\n",
+		            tracks.size(), mean(tracks), mean(rms0), mean(rms1));
 	return 0;
 }
 

@@ -134,14 +134,16 @@ int runTraj(int argc, char** argv)
 			char* end = nullptr;
 			const double x = std::strtod(item.c_str(), &end);
 			if (item.empty() || *end || !std::isfinite(x))
-				throw UsageError("option --align: expected se3 or x,y,z,qx,qy,qz,qw, got '" + al + "'");
+				throw UsageError("option --align: expected se3 or x,y,z,qx,qy,qz,qw, got '" + al +
+				                 "'");
 			v.push_back(x);
 		}
-		const Eigen::Quaterniond q(v.size() == 7 ? v[6] : 0, v.size() == 7 ? v[3] : 0, v.size() == 7 ? v[4] : 0,
-		                           v.size() == 7 ? v[5] : 0);
+		const Eigen::Quaterniond q(v.size() == 7 ? v[6] : 0, v.size() == 7 ? v[3] : 0,
+		                           v.size() == 7 ? v[4] : 0, v.size() == 7 ? v[5] : 0);
 		if (v.size() != 7 || std::abs(q.norm() - 1) > 1e-3)
-			throw UsageError("option --align: expected se3 or x,y,z,qx,qy,qz,qw with a unit quaternion, got '" +
-			                 al + "'");
+			throw UsageError(
+			    "option --align: expected se3 or x,y,z,qx,qy,qz,qw with a unit quaternion, got '" +
+			    al + "'");
 		fixedAlign = Eigen::Isometry3d::Identity();
 		fixedAlign->linear() = q.normalized().toRotationMatrix();
 		fixedAlign->translation() = Eigen::Vector3d(v[0], v[1], v[2]);
@@ -232,7 +234,8 @@ int runTraj(int argc, char** argv)
 	std::cout << buf;
 	std::snprintf(buf, sizeof(buf),
 	              "ATE (%s): rmse %.4f m, mean %.4f m, median %.4f m, max %.4f m\n",
-	              fixedAlign ? "given alignment" : "SE(3)-aligned", ate.rmse_m, ate.mean_m, ate.median_m, ate.max_m);
+	              fixedAlign ? "given alignment" : "SE(3)-aligned", ate.rmse_m, ate.mean_m,
+	              ate.median_m, ate.max_m);
 	std::cout << buf;
 	std::snprintf(
 	    buf, sizeof(buf),

@@ -16,7 +16,8 @@ int main(int argc, char** argv)
 {
 	if (argc != 4 || std::string(argv[2]) != "--out")
 	{
-		std::cerr << "usage: rasterslam map export DIR --out DIR2   (or rasterslam-map-export DIR --out DIR2)\n";
+		std::cerr << "usage: rasterslam map export DIR --out DIR2   (or rasterslam-map-export DIR "
+		             "--out DIR2)\n";
 		return 2;
 	}
 	mrpt::maps::registerAllClasses_mrpt_maps();
@@ -29,7 +30,8 @@ int main(int argc, char** argv)
 	catch (const std::exception& e)
 	{
 		std::string what = e.what();
-		if (const auto pos = what.find("Call stack"); pos != std::string::npos) what.resize(pos);
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos)
+			what.resize(pos);
 		std::cerr << "rasterslam: error: " << what << "\n";
 		return 1;
 	}

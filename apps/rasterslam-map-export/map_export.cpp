@@ -65,11 +65,14 @@ void exportMap(const std::string& dir, const std::string& outDir)
 			const auto a = map.localMaps.at(e.from)->anchor(), b = map.localMaps.at(e.to)->anchor();
 			graph.insertEdge(a, b, pose(b) - pose(a));
 		}
-	if (!map.keyframes.empty()) graph.root = map.keyframes.begin()->first;
-	writeAtomically(out / "map.graph", [&](const std::string& p) {
-		graph.saveToTextFile(p);
-		return fs::exists(p);
-	});
+	if (!map.keyframes.empty())
+		graph.root = map.keyframes.begin()->first;
+	writeAtomically(out / "map.graph",
+	                [&](const std::string& p)
+	                {
+		                graph.saveToTextFile(p);
+		                return fs::exists(p);
+	                });
 
 	// One keyframe of the simple map per local map: its points seen from its anchor.
 	mrpt::maps::CSimpleMap sm;
@@ -85,7 +88,8 @@ void exportMap(const std::string& dir, const std::string& outDir)
 			pts->insertPoint(x, y, z);
 			double gx, gy, gz;
 			anchor.composePoint(x, y, z, gx, gy, gz);
-			cloud.push_back(pcl::PointXYZ(static_cast<float>(gx), static_cast<float>(gy), static_cast<float>(gz)));
+			cloud.push_back(pcl::PointXYZ(static_cast<float>(gx), static_cast<float>(gy),
+			                              static_cast<float>(gz)));
 		}
 		auto obs = mrpt::obs::CObservationPointCloud::Create();
 		obs->pointcloud = pts;
@@ -100,36 +104,51 @@ void exportMap(const std::string& dir, const std::string& outDir)
 	writeAtomically(out / "map.simplemap", [&](const std::string& p) { return sm.saveToFile(p); });
 	cloud.width = static_cast<uint32_t>(cloud.size());
 	cloud.height = 1;
-	writeAtomically(out / "points.pcd", [&](const std::string& p) {
-		return cloud.empty() ? static_cast<bool>(std::ofstream(p) << "") : pcl::io::savePCDFileBinary(p, cloud) == 0;
-	});
-	writeAtomically(out / "points.ply", [&](const std::string& p) { return pcl::io::savePLYFileBinary(p, cloud) == 0; });
+	writeAtomically(out / "points.pcd",
+	                [&](const std::string& p)
+	                {
+		                return cloud.empty() ? static_cast<bool>(std::ofstream(p) << "")
+		                                     : pcl::io::savePCDFileBinary(p, cloud) == 0;
+	                });
+	writeAtomically(out / "points.ply", [&](const std::string& p)
+	                { return pcl::io::savePLYFileBinary(p, cloud) == 0; });
 
 	// A top view: the points in grey, each session's keyframes as a coloured line.
 	double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-	auto grow = [&](double x, double y) {
-		x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x), y1 = std::max(y1, y);
-	};
-	for (const auto& p : cloud) grow(p.x, p.y);
-	for (const auto& [id, p] : map.priorPoses) grow(p.x(), p.y());
+	auto grow = [&](double x, double y)
+	{ x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x), y1 = std::max(y1, y); };
+	for (const auto& p : cloud)
+		grow(p.x, p.y);
+	for (const auto& [id, p] : map.priorPoses)
+		grow(p.x(), p.y());
 	const int size = 1000, margin = 20;
 	const double scale = (size - 2 * margin) / std::max({x1 - x0, y1 - y0, 1.0});
 	cv::Mat img(size, size, CV_8UC3, cv::Scalar(255, 255, 255));
-	auto px = [&](double x, double y) {
-		return cv::Point(margin + static_cast<int>((x - x0) * scale), size - margin - static_cast<int>((y - y0) * scale));
+	auto px = [&](double x, double y)
+	{
+		return cv::Point(margin + static_cast<int>((x - x0) * scale),
+		                 size - margin - static_cast<int>((y - y0) * scale));
 	};
-	for (const auto& p : cloud) img.at<cv::Vec3b>(px(p.x, p.y)) = cv::Vec3b(170, 170, 170);
-	const cv::Scalar colours[] = {{200, 60, 20}, {30, 30, 220}, {40, 160, 40}, {160, 40, 160}, {20, 150, 200}};
+	for (const auto& p : cloud)
+		img.at<cv::Vec3b>(px(p.x, p.y)) = cv::Vec3b(170, 170, 170);
+	const cv::Scalar colours[] = {
+	    {200, 60, 20}, {30, 30, 220}, {40, 160, 40}, {160, 40, 160}, {20, 150, 200}};
 	std::map<uint32_t, std::vector<cv::Point>> lines;
-	for (const auto& [id, k] : map.keyframes) lines[k->session].push_back(px(pose(id).x(), pose(id).y()));
-	for (const auto& [s, l] : lines) cv::polylines(img, l, false, colours[s % 5], 2);
-	writeAtomically(out / "top.png", [&](const std::string& p) {
-		std::vector<uint8_t> png;
-		if (!cv::imencode(".png", img, png)) return false;
-		std::ofstream f(p, std::ios::binary);
-		f.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
-		return static_cast<bool>(f);
-	});
+	for (const auto& [id, k] : map.keyframes)
+		lines[k->session].push_back(px(pose(id).x(), pose(id).y()));
+	for (const auto& [s, l] : lines)
+		cv::polylines(img, l, false, colours[s % 5], 2);
+	writeAtomically(out / "top.png",
+	                [&](const std::string& p)
+	                {
+		                std::vector<uint8_t> png;
+		                if (!cv::imencode(".png", img, png))
+			                return false;
+		                std::ofstream f(p, std::ios::binary);
+		                f.write(reinterpret_cast<const char*>(png.data()),
+		                        static_cast<std::streamsize>(png.size()));
+		                return static_cast<bool>(f);
+	                });
 
 	// Each session's keyframes as a trajectory, for rasterslam-eval and other tools.
 	std::map<uint32_t, io::Trajectory> trajectories;
@@ -147,16 +166,22 @@ void exportMap(const std::string& dir, const std::string& outDir)
 	for (const auto& [id, stub] : map.localMaps)
 	{
 		const auto lm = map.data(id);
-		writeAtomically(imgDir / mrpt::format("%04llu.png", static_cast<unsigned long long>(id)), [&](const std::string& p) {
-			std::ofstream f(p, std::ios::binary);
-			f.write(reinterpret_cast<const char*>(lm->imagePng.data()), static_cast<std::streamsize>(lm->imagePng.size()));
-			return static_cast<bool>(f);
-		});
+		writeAtomically(imgDir / mrpt::format("%04llu.png", static_cast<unsigned long long>(id)),
+		                [&](const std::string& p)
+		                {
+			                std::ofstream f(p, std::ios::binary);
+			                f.write(reinterpret_cast<const char*>(lm->imagePng.data()),
+			                        static_cast<std::streamsize>(lm->imagePng.size()));
+			                return static_cast<bool>(f);
+		                });
 	}
 	std::printf(
-		"rasterslam: map %s exported to %s: map.graph (%zu keyframes), map.simplemap (%zu local maps), "
-		"points.pcd and points.ply (%zu points), top.png, keyframes-s*.tum (%zu sessions), localmaps/\n",
-		dir.c_str(), outDir.c_str(), graph.nodes.size(), sm.size(), cloud.size(), trajectories.size());
+	    "rasterslam: map %s exported to %s: map.graph (%zu keyframes), map.simplemap (%zu local "
+	    "maps), "
+	    "points.pcd and points.ply (%zu points), top.png, keyframes-s*.tum (%zu sessions), "
+	    "localmaps/\n",
+	    dir.c_str(), outDir.c_str(), graph.nodes.size(), sm.size(), cloud.size(),
+	    trajectories.size());
 }
 
 }  // namespace rasterslam::cli

@@ -17,12 +17,15 @@ constexpr int kExitError = 1, kExitUsage = 2;
 	std::exit(kExitUsage);
 }
 
-int runCommand(int argc, char** argv);  // `rasterslam run ...`
+int runCommand(int argc, char** argv);         // `rasterslam run ...`
 int relocalizeCommand(int argc, char** argv);  // `rasterslam relocalize ...`
-int mapCommand(int argc, char** argv);  // `rasterslam map ...`
+int mapCommand(int argc, char** argv);         // `rasterslam map ...`
 std::size_t parseIndexArg(const std::string& opt, const std::string& v);
 /** share/rasterslam/config/<name> from the environment, the install or the source tree. */
 std::string findConfig(const std::string& name = "default.yaml");
-inline std::string findDefaultConfig() { return findConfig("default.yaml"); }
+inline std::string findDefaultConfig()
+{
+	return findConfig("default.yaml");
+}
 
 }  // namespace rasterslam::cli

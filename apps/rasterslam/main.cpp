@@ -70,13 +70,16 @@ int listPlugins()
 		return cli::kExitError;
 	}
 	std::printf("plugin search path:\n");
-	for (const auto& d : loader.searchPath()) std::printf("  %s\n", d.c_str());
+	for (const auto& d : loader.searchPath())
+		std::printf("  %s\n", d.c_str());
 	const auto classes = loader.registeredClasses();
-	std::printf("%zu plugin classes from %zu modules:\n", classes.size(), loader.loadedModules().size());
+	std::printf("%zu plugin classes from %zu modules:\n", classes.size(),
+	            loader.loadedModules().size());
 	std::printf("  %-14s %-32s %s\n", "ROLE", "CLASS", "MODULE");
 	for (const auto& c : classes)
 		std::printf("  %-14s %-32s %s\n", c.role.c_str(), c.className.c_str(), c.module.c_str());
-	for (const auto& f : loader.failedModules()) std::printf("not loaded: %s\n", f.c_str());
+	for (const auto& f : loader.failedModules())
+		std::printf("not loaded: %s\n", f.c_str());
 	return loader.failedModules().empty() ? 0 : cli::kExitError;
 }
 }  // namespace
@@ -96,12 +99,17 @@ int main(int argc, char** argv)
 	}
 	if (cmd == "--version" || cmd == "version")
 	{
-		std::printf("rasterslam %s (%s)\n", RASTERSLAM_VERSION, mrpt::system::MRPT_getVersion().c_str());
+		std::printf("rasterslam %s (%s)\n", RASTERSLAM_VERSION,
+		            mrpt::system::MRPT_getVersion().c_str());
 		return 0;
 	}
-	if (cmd == "list-plugins") return listPlugins();
-	if (cmd == "run") return cli::runCommand(argc - 1, argv + 1);
-	if (cmd == "relocalize") return cli::relocalizeCommand(argc - 1, argv + 1);
-	if (cmd == "map") return cli::mapCommand(argc - 1, argv + 1);
+	if (cmd == "list-plugins")
+		return listPlugins();
+	if (cmd == "run")
+		return cli::runCommand(argc - 1, argv + 1);
+	if (cmd == "relocalize")
+		return cli::relocalizeCommand(argc - 1, argv + 1);
+	if (cmd == "map")
+		return cli::mapCommand(argc - 1, argv + 1);
 	cli::usageError("unknown command '" + cmd + "'");
 }

@@ -42,7 +42,8 @@ std::size_t parseIndex(const std::string& opt, const std::string& v)
 
 double percentile(std::vector<double> v, double q)
 {
-	if (v.empty()) return 0;
+	if (v.empty())
+		return 0;
 	std::sort(v.begin(), v.end());
 	const double pos = q * (v.size() - 1);
 	const auto lo = static_cast<std::size_t>(pos);
@@ -58,36 +59,40 @@ class Progress
 	void update(const ScanRecord& r, double frac)
 	{
 		++n_;
-		if (quiet_) return;
+		if (quiet_)
+			return;
 		const double el = std::chrono::duration<double>(Clock::now() - t0_).count();
 		const double rate = el > 0 ? n_ / el : 0;
 		const double eta = frac > 0.01 ? el * (1 - frac) / frac : -1;
 		if (tty_)
 		{
-			if (std::chrono::duration<double>(Clock::now() - last_).count() < 0.1 && frac < 1) return;
+			if (std::chrono::duration<double>(Clock::now() - last_).count() < 0.1 && frac < 1)
+				return;
 			last_ = Clock::now();
 			const int width = 30, filled = frac >= 0 ? static_cast<int>(frac * width) : 0;
 			std::string bar(filled, '=');
 			bar.resize(width, ' ');
-			std::fprintf(
-				stderr, "\r[%s] %3.0f%%  scan %zu  %.1f scans/s  ETA %s   ", bar.c_str(),
-				std::max(0.0, frac) * 100, r.index, rate,
-				eta >= 0 ? mrpt::format("%.0fs", eta).c_str() : "?");
+			std::fprintf(stderr, "\r[%s] %3.0f%%  scan %zu  %.1f scans/s  ETA %s   ", bar.c_str(),
+			             std::max(0.0, frac) * 100, r.index, rate,
+			             eta >= 0 ? mrpt::format("%.0fs", eta).c_str() : "?");
 		}
 		else
 		{
 			const int decile = frac >= 0 ? static_cast<int>(frac * 10) : static_cast<int>(n_ / 100);
-			if (decile == lastDecile_) return;
+			if (decile == lastDecile_)
+				return;
 			lastDecile_ = decile;
 			std::fprintf(
-				stderr, "[rasterslam] %zu scans (index %zu, %.0f%% of input), %.1f scans/s, ETA %s\n",
-				n_, r.index, std::max(0.0, frac) * 100, rate,
-				eta >= 0 ? mrpt::format("%.0fs", eta).c_str() : "?");
+			    stderr,
+			    "[rasterslam] %zu scans (index %zu, %.0f%% of input), %.1f scans/s, ETA %s\n", n_,
+			    r.index, std::max(0.0, frac) * 100, rate,
+			    eta >= 0 ? mrpt::format("%.0fs", eta).c_str() : "?");
 		}
 	}
 	void done()
 	{
-		if (tty_ && !quiet_ && n_ > 0) std::fprintf(stderr, "\n");
+		if (tty_ && !quiet_ && n_ > 0)
+			std::fprintf(stderr, "\n");
 	}
 
    private:
@@ -99,36 +104,46 @@ class Progress
 };
 }  // namespace
 
-std::size_t parseIndexArg(const std::string& opt, const std::string& v) { return parseIndex(opt, v); }
+std::size_t parseIndexArg(const std::string& opt, const std::string& v)
+{
+	return parseIndex(opt, v);
+}
 
 std::string findConfig(const std::string& name)
 {
 	std::vector<fs::path> dirs;
-	if (const char* env = std::getenv("RASTERSLAM_SHARE_DIR")) dirs.emplace_back(env);
+	if (const char* env = std::getenv("RASTERSLAM_SHARE_DIR"))
+		dirs.emplace_back(env);
 	std::error_code ec;
 	const auto exe = fs::read_symlink("/proc/self/exe", ec);
-	if (!ec) dirs.push_back(exe.parent_path() / ".." / "share" / "rasterslam");
+	if (!ec)
+		dirs.push_back(exe.parent_path() / ".." / "share" / "rasterslam");
 	dirs.emplace_back(RASTERSLAM_SOURCE_SHARE_DIR);
 	dirs.emplace_back(RASTERSLAM_INSTALL_SHARE_DIR);
 	for (const auto& d : dirs)
-		if (fs::exists(d / "config" / name)) return (d / "config" / name).lexically_normal().string();
-	throw std::runtime_error(
-		"no config found (share/rasterslam/config/" + name + "); give --config");
+		if (fs::exists(d / "config" / name))
+			return (d / "config" / name).lexically_normal().string();
+	throw std::runtime_error("no config found (share/rasterslam/config/" + name +
+	                         "); give --config");
 }
 
 int runCommand(int argc, char** argv)
 {
 	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
 	RunOptions opts;
-	bool quiet = false, verbose = false, saveImages = false, overwrite = false, requireLocalization = false;
+	bool quiet = false, verbose = false, saveImages = false, overwrite = false,
+	     requireLocalization = false;
 	for (int i = 1; i < argc; i++)
 	{
 		const std::string a = argv[i];
-		auto value = [&]() -> std::string {
-			if (i + 1 >= argc) usageError(a + " needs a value");
+		auto value = [&]() -> std::string
+		{
+			if (i + 1 >= argc)
+				usageError(a + " needs a value");
 			return argv[++i];
 		};
-		if (a == "--rawlog") rawlog = value();
+		if (a == "--rawlog")
+			rawlog = value();
 		else if (a == "--out")
 			outDir = value();
 		else if (a == "--config")
@@ -165,20 +180,26 @@ int runCommand(int argc, char** argv)
 			verbose = true;
 		else if (a == "-h" || a == "--help")
 		{
-			std::cout << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
-						 "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in DIR] [--map-out DIR [--overwrite]] [--require-localization] [--quiet|--verbose]\n"
-						 "(rasterslam --help explains every option)\n";
+			std::cout
+			    << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
+			       "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in "
+			       "DIR] [--map-out DIR [--overwrite]] [--require-localization] "
+			       "[--quiet|--verbose]\n"
+			       "(rasterslam --help explains every option)\n";
 			return 0;
 		}
 		else
 			usageError("run: unknown option '" + a + "'");
 	}
-	if (rawlog.empty()) usageError("run: --rawlog FILE is required");
-	if (outDir.empty()) usageError("run: --out DIR is required");
-	if (opts.first && opts.last && *opts.first > *opts.last) usageError("run: --first is after --last");
+	if (rawlog.empty())
+		usageError("run: --rawlog FILE is required");
+	if (outDir.empty())
+		usageError("run: --out DIR is required");
+	if (opts.first && opts.last && *opts.first > *opts.last)
+		usageError("run: --first is after --last");
 
 	const auto logLevel = verbose ? mrpt::system::LVL_DEBUG
-								  : (quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
+	                              : (quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
 	RunResult res;
 	yaml info = yaml::Map();
 	std::unique_ptr<Engine> engine;
@@ -192,29 +213,32 @@ int runCommand(int argc, char** argv)
 			// session extends, or when asked to.
 			std::error_code ec;
 			const bool exists = fs::exists(mapFilePath(mapOut), ec);
-			const bool same = !mapIn.empty() && fs::exists(mapIn, ec) && fs::equivalent(mapIn, mapOut, ec);
+			const bool same =
+			    !mapIn.empty() && fs::exists(mapIn, ec) && fs::equivalent(mapIn, mapOut, ec);
 			if (exists && !same && !overwrite)
-				throw std::runtime_error(
-					"--map-out " + mapOut + " holds a map already: pass --map-in " + mapOut +
-					" to extend it, or --overwrite to replace it");
+				throw std::runtime_error("--map-out " + mapOut +
+				                         " holds a map already: pass --map-in " + mapOut +
+				                         " to extend it, or --overwrite to replace it");
 			io::ensureWritableDir(mapOut);
 		}
-		if (configPath.empty()) configPath = findDefaultConfig();
+		if (configPath.empty())
+			configPath = findDefaultConfig();
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);
 		if (!mapIn.empty())
 		{
 			if (!engine->mapManager() || !engine->loopDetector() || !engine->rasterizer())
 				throw std::runtime_error(
-					"--map-in needs a rasterizer, a map_manager and a loop_detector in the config, e.g. "
-					"share/rasterslam/config/slam.yaml");
+				    "--map-in needs a rasterizer, a map_manager and a loop_detector in the config, "
+				    "e.g. "
+				    "share/rasterslam/config/slam.yaml");
 			engine->loadMap(mapIn);
 			opts.relocalizeFirstScan = true;
 		}
 		if (!mapOut.empty() && !engine->mapManager())
 			throw std::runtime_error(
-				"--map-out needs a map_manager in the config (it keeps the map), e.g. "
-				"share/rasterslam/config/slam.yaml");
+			    "--map-out needs a map_manager in the config (it keeps the map), e.g. "
+			    "share/rasterslam/config/slam.yaml");
 		engine->setLogLevel(logLevel);
 		io::RawlogSourceOptions so;
 		so.sensorLabel = sensor;
@@ -230,7 +254,8 @@ int runCommand(int argc, char** argv)
 		std::fprintf(stderr, "[rasterslam] config %s\n", configPath.c_str());
 		std::stringstream ss;
 		engine->configInForce().printAsYAML(ss);
-		if (verbose) std::fprintf(stderr, "%s", ss.str().c_str());
+		if (verbose)
+			std::fprintf(stderr, "%s", ss.str().c_str());
 	}
 
 	Progress progress(quiet);
@@ -240,7 +265,8 @@ int runCommand(int argc, char** argv)
 	{
 		const fs::path imgDir = fs::path(outDir) / "images";
 		fs::create_directories(imgDir);
-		opts.onRaster = [&, imgDir](const Scan& s, const RasterFrame& f) {
+		opts.onRaster = [&, imgDir](const Scan& s, const RasterFrame& f)
+		{
 			const auto path = imgDir / mrpt::format("%06zu.png", s.index);
 			const auto tmp = imgDir / mrpt::format(".%06zu.png.tmp.png", s.index);
 			if (!f.image.saveToFile(tmp.string()) && imageError.empty())
@@ -259,8 +285,10 @@ int runCommand(int argc, char** argv)
 		runError = e.what();
 	}
 	progress.done();
-	if (!res.error.empty()) runError = res.error;
-	if (runError.empty() && !imageError.empty()) runError = imageError;
+	if (!res.error.empty())
+		runError = res.error;
+	if (runError.empty() && !imageError.empty())
+		runError = imageError;
 
 	// Summary figures.
 	std::vector<double> total, odo, ras, rd;
@@ -301,7 +329,8 @@ int runCommand(int argc, char** argv)
 	counts["local_maps"] = static_cast<uint64_t>(res.localMaps);
 	counts["local_ba_runs"] = static_cast<uint64_t>(res.localBaRuns);
 	counts["online_optimizations"] = static_cast<uint64_t>(res.onlineOptimizations);
-	if (res.corruptedLoops > 0) counts["corrupted_loops_test_hook"] = static_cast<uint64_t>(res.corruptedLoops);
+	if (res.corruptedLoops > 0)
+		counts["corrupted_loops_test_hook"] = static_cast<uint64_t>(res.corruptedLoops);
 	counts["skipped_bad_scans"] = static_cast<uint64_t>(res.skippedBadScans);
 	info["counts"] = counts;
 	yaml summary = yaml::Map();
@@ -316,7 +345,9 @@ int runCommand(int argc, char** argv)
 	summary["local_maps_replaced"] = res.localMapsReplaced;
 	summary["memory_trim_ms_total"] = res.memoryTrim_ms;
 	summary["online_optimization_nodes_mean"] =
-		res.onlineOptimizations ? static_cast<double>(res.onlineOptimizationNodes) / res.onlineOptimizations : 0.0;
+	    res.onlineOptimizations
+	        ? static_cast<double>(res.onlineOptimizationNodes) / res.onlineOptimizations
+	        : 0.0;
 	yaml cpu = yaml::Map();
 	cpu["tracking_s"] = res.cpuTracking_s;
 	cpu["mapping_and_loop_closing_s"] = res.cpuBackend_s;
@@ -325,7 +356,8 @@ int runCommand(int argc, char** argv)
 	{
 		summary["final_optimization_ms"] = res.optimizer.time_ms;
 		std::size_t downweighted = 0;
-		for (const auto& [e, w] : res.optimizer.edgeWeights) downweighted += w < 0.1;
+		for (const auto& [e, w] : res.optimizer.edgeWeights)
+			downweighted += w < 0.1;
 		if (!res.optimizer.edgeWeights.empty())
 			summary["loop_edges_downweighted"] = static_cast<uint64_t>(downweighted);
 	}
@@ -339,13 +371,14 @@ int runCommand(int argc, char** argv)
 	}
 	summary["path_length_m"] = pathLen;
 	std::optional<double> ate, gtPathLen;
-	if (!res.scans.empty() &&
-		std::all_of(res.scans.begin(), res.scans.end(), [](const auto& r) { return r.groundTruth.has_value(); }))
+	if (!res.scans.empty() && std::all_of(res.scans.begin(), res.scans.end(),
+	                                      [](const auto& r) { return r.groundTruth.has_value(); }))
 	{
 		io::Trajectory gt, est;
 		for (std::size_t i = 0; i < res.scans.size(); i++)
 		{
-			gt.push_back({res.scans[i].stamp, io::toIsometry(mrpt::poses::CPose3D(*res.scans[i].groundTruth))});
+			gt.push_back({res.scans[i].stamp,
+			              io::toIsometry(mrpt::poses::CPose3D(*res.scans[i].groundTruth))});
 			est.push_back({res.scans[i].stamp, io::toIsometry(res.poses[i])});
 		}
 		const auto a = eval::associate(gt, est, true);
@@ -355,7 +388,8 @@ int runCommand(int argc, char** argv)
 		gtPathLen = eval::trajectoryDistances(gt, a).back();
 		summary["ground_truth_path_length_m"] = *gtPathLen;
 	}
-	if (!res.stopReason.empty()) summary["stopped_early"] = res.stopReason;
+	if (!res.stopReason.empty())
+		summary["stopped_early"] = res.stopReason;
 	const bool unlocated = opts.relocalizeFirstScan && !res.localized;
 	if (opts.relocalizeFirstScan)
 	{
@@ -364,10 +398,12 @@ int runCommand(int argc, char** argv)
 	}
 	if (unlocated && !mapOut.empty() && runError.empty())
 		runError = "the session was never located in the prior map " + mapIn +
-			": the map is not saved (it would hold two frames)";
+		           ": the map is not saved (it would hold two frames)";
 	else if (unlocated && requireLocalization && runError.empty())
-		runError = "the session was never located in the prior map " + mapIn + " (--require-localization)";
-	if (!runError.empty()) summary["error"] = runError;
+		runError =
+		    "the session was never located in the prior map " + mapIn + " (--require-localization)";
+	if (!runError.empty())
+		summary["error"] = runError;
 	info["summary"] = summary;
 
 	if (!mapOut.empty() && !res.scans.empty() && !unlocated)
@@ -378,7 +414,8 @@ int runCommand(int argc, char** argv)
 		}
 		catch (const std::exception& e)
 		{
-			if (runError.empty()) runError = std::string("saving the map: ") + e.what();
+			if (runError.empty())
+				runError = std::string("saving the map: ") + e.what();
 		}
 	}
 	bool wrote = false;
@@ -397,25 +434,27 @@ int runCommand(int argc, char** argv)
 	}
 
 	std::printf(
-		"rasterslam: %zu scans, %zu keyframes, %zu lost%s in %.1f s: %.1f ms/scan median, "
-		"%.1f p95 (%.1f scans/s), peak memory %.0f MB\n",
-		res.scans.size(), res.keyframes, res.lost,
-		opts.realtime ? mrpt::format(", %zu late", res.late).c_str() : "", res.wall_s,
-		percentile(total, 0.5), percentile(total, 0.95),
-		res.wall_s > 0 ? res.scans.size() / res.wall_s : 0.0, peakRssMb());
+	    "rasterslam: %zu scans, %zu keyframes, %zu lost%s in %.1f s: %.1f ms/scan median, "
+	    "%.1f p95 (%.1f scans/s), peak memory %.0f MB\n",
+	    res.scans.size(), res.keyframes, res.lost,
+	    opts.realtime ? mrpt::format(", %zu late", res.late).c_str() : "", res.wall_s,
+	    percentile(total, 0.5), percentile(total, 0.95),
+	    res.wall_s > 0 ? res.scans.size() / res.wall_s : 0.0, peakRssMb());
 	if (ate)
 		std::printf(
-			"rasterslam: ATE against the rawlog's ground truth: %.3f m RMSE over %.1f m (ground truth's route)\n", *ate,
-			*gtPathLen);
+		    "rasterslam: ATE against the rawlog's ground truth: %.3f m RMSE over %.1f m (ground "
+		    "truth's route)\n",
+		    *ate, *gtPathLen);
 	if (opts.relocalizeFirstScan)
-		std::printf(
-			"rasterslam: %s in the prior map %s (%zu hits in earlier sessions)\n",
-			res.localized ? "located" : "NOT located", mapIn.c_str(), res.anchorHits);
+		std::printf("rasterslam: %s in the prior map %s (%zu hits in earlier sessions)\n",
+		            res.localized ? "located" : "NOT located", mapIn.c_str(), res.anchorHits);
 	if (!res.stopReason.empty())
 		std::fprintf(
-			stderr, "rasterslam: error: the input stopped early, outputs cover the %zu scans before: %s\n",
-			res.scans.size(), res.stopReason.c_str());
-	if (wrote) std::printf("rasterslam: outputs in %s\n", fs::absolute(outDir).lexically_normal().c_str());
+		    stderr,
+		    "rasterslam: error: the input stopped early, outputs cover the %zu scans before: %s\n",
+		    res.scans.size(), res.stopReason.c_str());
+	if (wrote)
+		std::printf("rasterslam: outputs in %s\n", fs::absolute(outDir).lexically_normal().c_str());
 	if (!runError.empty())
 	{
 		std::cerr << "rasterslam: error: " << runError << "\n";
@@ -423,9 +462,10 @@ int runCommand(int argc, char** argv)
 	}
 	if (res.scans.empty())
 	{
-		std::cerr << "rasterslam: error: " << rawlog << ": no 3D scans were read (CObservationPointCloud, "
-					 "CObservationVelodyneScan, CObservationRotatingScan or CObservation3DRangeScan"
-				  << (sensor.empty() ? "" : " with label '" + sensor + "'") << ")\n";
+		std::cerr << "rasterslam: error: " << rawlog
+		          << ": no 3D scans were read (CObservationPointCloud, "
+		             "CObservationVelodyneScan, CObservationRotatingScan or CObservation3DRangeScan"
+		          << (sensor.empty() ? "" : " with label '" + sensor + "'") << ")\n";
 		return kExitError;
 	}
 	// A damaged input processed up to the damage is still a failed run for scripts.

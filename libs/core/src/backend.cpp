@@ -23,27 +23,30 @@ double threadCpuSeconds()
 	return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-Backend::Backend(
-	MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer, const BackendSettings& s,
-	RunResult& res, mrpt::system::COutputLogger& log, bool waitForEachKeyframe)
-	: mapManager_(mapManager),
-	  loopDetector_(loopDetector),
-	  optimizer_(optimizer),
-	  s_(s),
-	  res_(res),
-	  log_(log),
-	  waitForEachKeyframe_(waitForEachKeyframe)
+Backend::Backend(MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer,
+                 const BackendSettings& s, RunResult& res, mrpt::system::COutputLogger& log,
+                 bool waitForEachKeyframe)
+    : mapManager_(mapManager),
+      loopDetector_(loopDetector),
+      optimizer_(optimizer),
+      s_(s),
+      res_(res),
+      log_(log),
+      waitForEachKeyframe_(waitForEachKeyframe)
 {
-	poses_.live = [this](uint64_t id) -> const mrpt::poses::CPose3D* {
+	poses_.live = [this](uint64_t id) -> const mrpt::poses::CPose3D*
+	{
 		// A copy taken under the lock: the optimizer may rewrite the node right after.
 		thread_local mrpt::poses::CPose3D copy;
 		std::lock_guard<std::mutex> lk(graphMutex_);
 		const auto it = res_.graph.nodes.find(id);
-		if (it == res_.graph.nodes.end()) return nullptr;
+		if (it == res_.graph.nodes.end())
+			return nullptr;
 		copy = it->second;
 		return &copy;
 	};
-	if (mapManager_) poses_.prior = &mapManager_->map().priorPoses;
+	if (mapManager_)
+		poses_.prior = &mapManager_->map().priorPoses;
 	worker_ = std::thread([this] { workerLoop(); });
 }
 
@@ -73,10 +76,12 @@ void Backend::submit(KeyframeJob job)
 		queue_.push_back(std::move(job));
 	}
 	queueCv_.notify_one();
-	if (!waitForEachKeyframe_) return;
+	if (!waitForEachKeyframe_)
+		return;
 	std::unique_lock<std::mutex> lk(queueMutex_);
 	idleCv_.wait(lk, [this] { return queue_.empty() && !busy_; });
-	if (!error_.empty()) throw std::runtime_error(error_);
+	if (!error_.empty())
+		throw std::runtime_error(error_);
 }
 
 void Backend::workerLoop()
@@ -88,7 +93,8 @@ void Backend::workerLoop()
 		{
 			std::unique_lock<std::mutex> lk(queueMutex_);
 			queueCv_.wait(lk, [this] { return stop_ || !queue_.empty(); });
-			if (queue_.empty()) break;
+			if (queue_.empty())
+				break;
 			job = std::move(queue_.front());
 			queue_.pop_front();
 			busy_ = true;
@@ -104,12 +110,14 @@ void Backend::workerLoop()
 		catch (const std::exception& e)
 		{
 			std::lock_guard<std::mutex> lk(queueMutex_);
-			if (error_.empty()) error_ = e.what();
+			if (error_.empty())
+				error_ = e.what();
 		}
 		catch (...)
 		{
 			std::lock_guard<std::mutex> lk(queueMutex_);
-			if (error_.empty()) error_ = "unknown exception";
+			if (error_.empty())
+				error_ = "unknown exception";
 		}
 		{
 			std::lock_guard<std::mutex> lk(queueMutex_);
@@ -132,7 +140,8 @@ void Backend::finish()
 		queueCv_.notify_all();
 		worker_.join();
 	}
-	if (!mapManager_) return;
+	if (!mapManager_)
+		return;
 	const double c0 = threadCpuSeconds();
 	std::lock_guard<std::mutex> lk(mapMutex_);
 	applyMapping(mapManager_->finish(poses_));
@@ -141,15 +150,18 @@ void Backend::finish()
 
 void Backend::writePoses(const std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D>& updated)
 {
-	if (updated.empty()) return;
+	if (updated.empty())
+		return;
 	const auto newest = updated.rbegin()->first;
 	auto& nodes = res_.graph.nodes;
 	const mrpt::poses::CPose3D before = nodes.at(newest);
-	for (const auto& [id, p] : updated) nodes.at(id) = p;
+	for (const auto& [id, p] : updated)
+		nodes.at(id) = p;
 	// Keyframe ids grow with time: those past the newest updated one were made by the tracking
 	// from its old pose; they move rigidly with it.
 	const mrpt::poses::CPose3D C = updated.rbegin()->second + (mrpt::poses::CPose3D() - before);
-	for (auto it = nodes.upper_bound(newest); it != nodes.end(); ++it) it->second = C + it->second;
+	for (auto it = nodes.upper_bound(newest); it != nodes.end(); ++it)
+		it->second = C + it->second;
 }
 
 void Backend::addFixedNode(mrpt::graphs::TNodeID id, const mrpt::poses::CPose3D& pose)
@@ -166,7 +178,8 @@ void Backend::applyMapping(const MappingUpdate& up)
 		++res_.localBaRuns;
 		const mrpt::poses::CPose3D anchor = res_.graph.nodes.at(up.anchor);
 		std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D> updated;
-		for (const auto& [id, T] : up.T_anchor_kf) updated[id] = anchor + T;
+		for (const auto& [id, T] : up.T_anchor_kf)
+			updated[id] = anchor + T;
 		writePoses(updated);
 		// The tracking edge between consecutive keyframes takes the refined motion, so a later
 		// optimization keeps it.
@@ -185,7 +198,8 @@ void Backend::applyMapping(const MappingUpdate& up)
 			std::lock_guard<std::mutex> lk(graphMutex_);
 			++res_.localMaps;
 		}
-		if (loopDetector_) loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
+		if (loopDetector_)
+			loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
 	}
 	if (loopDetector_)
 		for (const auto& [older, newer] : up.replaced)
@@ -207,7 +221,8 @@ void Backend::optimizeNow()
 		std::set<uint64_t> online;
 		for (const auto& [id, lm] : mapManager_->map().localMaps)
 			(lm->online ? online : still).insert(lm->keyframes.begin(), lm->keyframes.end());
-		for (const auto k : online) still.erase(k);
+		for (const auto k : online)
+			still.erase(k);
 	}
 	// The optimizer works on a copy (of the window), so the tracking can add keyframes
 	// meanwhile.
@@ -224,14 +239,17 @@ void Backend::optimizeNow()
 		}
 		else
 		{
-			auto moves = [&](mrpt::graphs::TNodeID id) { return !still.count(id) && !fixed_.count(id); };
+			auto moves = [&](mrpt::graphs::TNodeID id)
+			{ return !still.count(id) && !fixed_.count(id); };
 			for (const auto& [id, p] : res_.graph.nodes)
-				if (moves(id)) g.nodes[id] = p;
+				if (moves(id))
+					g.nodes[id] = p;
 			// Edges with a moving end; their other end joins the window, fixed.
 			for (const auto& [ends, e] : res_.graph.edges)
 			{
 				const bool a = moves(ends.first), b = moves(ends.second);
-				if (!a && !b) continue;
+				if (!a && !b)
+					continue;
 				for (const auto id : {ends.first, ends.second})
 					if (!moves(id) && res_.graph.nodes.count(id))
 					{
@@ -239,18 +257,22 @@ void Backend::optimizeNow()
 						fixed.insert(id);
 					}
 				g.insertEdge(ends.first, ends.second, e);
-				if (res_.uncertainEdges.count(ends)) uncertain.insert(ends);
+				if (res_.uncertainEdges.count(ends))
+					uncertain.insert(ends);
 			}
 			g.root = fixed.empty() ? res_.graph.root : *fixed.begin();
-			if (!g.nodes.count(g.root)) g.root = g.nodes.empty() ? 0 : g.nodes.begin()->first;
+			if (!g.nodes.count(g.root))
+				g.root = g.nodes.empty() ? 0 : g.nodes.begin()->first;
 		}
 	}
-	if (g.nodes.empty()) return;
+	if (g.nodes.empty())
+		return;
 	const auto r = optimizer_->optimize(g, uncertain, fixed);
 	std::lock_guard<std::mutex> lk(graphMutex_);
 	std::map<mrpt::graphs::TNodeID, mrpt::poses::CPose3D> updated;
 	for (const auto& [id, p] : g.nodes)
-		if (!fixed.count(id)) updated[id] = p;
+		if (!fixed.count(id))
+			updated[id] = p;
 	writePoses(updated);
 	++res_.onlineOptimizations;
 	res_.onlineOptimization_ms += r.time_ms;
@@ -298,12 +320,15 @@ void Backend::process(KeyframeJob& job)
 				// A keyframe of an earlier session (--map-in). Once this session is anchored in
 				// that map the loop joins them: the keyframe enters the graph, fixed.
 				++res_.loopsToPriorMap;
-				if (!anchored_ || !poses_.prior || !poses_.prior->count(lc.from)) continue;
+				if (!anchored_ || !poses_.prior || !poses_.prior->count(lc.from))
+					continue;
 				addFixedNode(lc.from, poses_.prior->at(lc.from));
 				++res_.priorMapLoopEdges;
 			}
-			if (!res_.graph.nodes.count(lc.to)) continue;
-			if (s_.testCorruptLoops > 0 && std::uniform_real_distribution<double>(0, 1)(corruptRng_) < s_.testCorruptLoops)
+			if (!res_.graph.nodes.count(lc.to))
+				continue;
+			if (s_.testCorruptLoops > 0 &&
+			    std::uniform_real_distribution<double>(0, 1)(corruptRng_) < s_.testCorruptLoops)
 			{
 				// Test hook: a wrong loop, as a perceptual alias would give (5 m, 20 deg).
 				lc.T_from_to = lc.T_from_to + mrpt::poses::CPose3D(5, -2, 0, 20 * M_PI / 180, 0, 0);
@@ -320,12 +345,13 @@ void Backend::process(KeyframeJob& job)
 		}
 		// Outside the graph lock: this may write a local map to the offline store, and the
 		// tracking takes that lock every scan.
-		for (const auto& [from, to] : accepted) mapManager_->loopAccepted(from, to, job.kf.stamp);
+		for (const auto& [from, to] : accepted)
+			mapManager_->loopAccepted(from, to, job.kf.stamp);
 		// Paper, "Loop Closure": the trajectory is optimized after a loop constraint is added
 		// (at most every optimize_every_keyframes keyframes).
 		++kfSinceOptimization_;
 		if (optimizer_ && s_.optimizeOnline && optimizationPending_ &&
-			kfSinceOptimization_ >= static_cast<std::size_t>(s_.optimizeEveryKeyframes))
+		    kfSinceOptimization_ >= static_cast<std::size_t>(s_.optimizeEveryKeyframes))
 		{
 			// Cleared first: a request the tracking makes meanwhile stays for the next time.
 			optimizationPending_ = false;

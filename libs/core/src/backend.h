@@ -39,9 +39,9 @@ struct BackendSettings
 class Backend
 {
    public:
-	Backend(
-		MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer, const BackendSettings& s,
-		RunResult& res, mrpt::system::COutputLogger& log, bool waitForEachKeyframe);
+	Backend(MapManager* mapManager, LoopDetector* loopDetector, Optimizer* optimizer,
+	        const BackendSettings& s, RunResult& res, mrpt::system::COutputLogger& log,
+	        bool waitForEachKeyframe);
 	~Backend();
 	Backend(const Backend&) = delete;
 	Backend& operator=(const Backend&) = delete;
@@ -91,7 +91,6 @@ class Backend
 	double trimMs() const { return trimMs_; }
 
    private:
-
 	MapManager* mapManager_;
 	LoopDetector* loopDetector_;
 	Optimizer* optimizer_;

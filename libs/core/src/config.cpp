@@ -14,7 +14,8 @@ using mrpt::containers::yaml;
 yaml loadYamlFile(const std::string& path)
 {
 	std::ifstream f(path);
-	if (!f) throw ConfigError("cannot read config file '" + path + "'");
+	if (!f)
+		throw ConfigError("cannot read config file '" + path + "'");
 	std::stringstream ss;
 	ss << f.rdbuf();
 	yaml y;
@@ -28,32 +29,34 @@ yaml loadYamlFile(const std::string& path)
 	}
 	// MRPT's parser reports some syntax errors on stderr and returns a null node.
 	if (!y.isMap())
-		throw ConfigError(
-			"config file '" + path + "': expected a YAML map of sections at the top level");
+		throw ConfigError("config file '" + path +
+		                  "': expected a YAML map of sections at the top level");
 	return y;
 }
 
 ParamReader::ParamReader(const yaml& node, std::string context, std::string source)
-	: node_(node), context_(std::move(context)), source_(std::move(source))
+    : node_(node), context_(std::move(context)), source_(std::move(source))
 {
 	if (!node_.isNullNode() && !node_.empty() && !node_.isMap())
-		throw ConfigError(
-			(source_.empty() ? "" : source_ + ": ") + "'" + context_ +
-			"' must be a map of parameters");
+		throw ConfigError((source_.empty() ? "" : source_ + ": ") + "'" + context_ +
+		                  "' must be a map of parameters");
 }
 
 void ParamReader::fail(const std::string& key, const std::string& what) const
 {
-	throw ConfigError(
-		(source_.empty() ? "" : source_ + ": ") + "key '" + context_ + "." + key + "': " + what);
+	throw ConfigError((source_.empty() ? "" : source_ + ": ") + "key '" + context_ + "." + key +
+	                  "': " + what);
 }
 
 std::optional<std::string> ParamReader::scalar(const std::string& key) const
 {
-	if (!node_.isMap() || !node_.has(key)) return std::nullopt;
+	if (!node_.isMap() || !node_.has(key))
+		return std::nullopt;
 	const yaml v = node_[key];
-	if (v.isNullNode()) return std::nullopt;
-	if (!v.isScalar()) fail(key, "expected a single value, got a list or a map");
+	if (v.isNullNode())
+		return std::nullopt;
+	if (!v.isScalar())
+		fail(key, "expected a single value, got a list or a map");
 	return v.as<std::string>();
 }
 
@@ -68,7 +71,8 @@ std::string trim(const std::string& s)
 bool parseDouble(const std::string& s, double& out)
 {
 	const std::string t = trim(s);
-	if (t.empty()) return false;
+	if (t.empty())
+		return false;
 	char* end = nullptr;
 	errno = 0;
 	out = std::strtod(t.c_str(), &end);
@@ -83,7 +87,8 @@ double ParamReader::getDouble(const std::string& key, double def)
 	if (const auto n = scalar(key))
 	{
 		const auto s = *n;
-		if (!parseDouble(s, v)) fail(key, "expected a number, got '" + s + "'");
+		if (!parseDouble(s, v))
+			fail(key, "expected a number, got '" + s + "'");
 	}
 	inForce_[key] = v;
 	return v;
@@ -100,7 +105,7 @@ int ParamReader::getInt(const std::string& key, int def)
 		errno = 0;
 		const long l = std::strtol(s.c_str(), &end, 10);
 		if (s.empty() || errno != 0 || end != s.c_str() + s.size() || l < INT32_MIN ||
-			l > INT32_MAX)
+		    l > INT32_MAX)
 			fail(key, "expected an integer, got '" + s + "'");
 		v = static_cast<int>(l);
 	}
@@ -115,7 +120,8 @@ bool ParamReader::getBool(const std::string& key, bool def)
 	if (const auto n = scalar(key))
 	{
 		const auto s = trim(*n);
-		if (s == "true" || s == "True" || s == "yes") v = true;
+		if (s == "true" || s == "True" || s == "yes")
+			v = true;
 		else if (s == "false" || s == "False" || s == "no")
 			v = false;
 		else
@@ -129,19 +135,22 @@ std::string ParamReader::getString(const std::string& key, const std::string& de
 {
 	used_.insert(key);
 	std::string v = def;
-	if (const auto n = scalar(key)) v = *n;
+	if (const auto n = scalar(key))
+		v = *n;
 	inForce_[key] = v;
 	return v;
 }
 
-std::string ParamReader::getChoice(
-	const std::string& key, const std::string& def, const std::vector<std::string>& allowed)
+std::string ParamReader::getChoice(const std::string& key, const std::string& def,
+                                   const std::vector<std::string>& allowed)
 {
 	const std::string v = getString(key, def);
 	for (const auto& a : allowed)
-		if (a == v) return v;
+		if (a == v)
+			return v;
 	std::string list;
-	for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+	for (const auto& a : allowed)
+		list += (list.empty() ? "" : ", ") + a;
 	fail(key, "expected one of {" + list + "}, got '" + v + "'");
 }
 
@@ -152,18 +161,21 @@ std::vector<double> ParamReader::getDoubles(const std::string& key, const std::v
 	if (node_.isMap() && node_.has(key) && !node_[key].isNullNode())
 	{
 		const yaml n = node_[key];
-		if (!n.isSequence()) fail(key, "expected a list of numbers");
+		if (!n.isSequence())
+			fail(key, "expected a list of numbers");
 		v.clear();
 		for (const auto& e : n.asSequence())
 		{
 			double d = 0;
 			const auto s = e.isScalar() ? e.as<std::string>() : std::string("<non-scalar>");
-			if (!parseDouble(s, d)) fail(key, "expected a list of numbers, got element '" + s + "'");
+			if (!parseDouble(s, d))
+				fail(key, "expected a list of numbers, got element '" + s + "'");
 			v.push_back(d);
 		}
 	}
 	yaml seq = yaml::Sequence();
-	for (double d : v) seq.push_back(d);
+	for (double d : v)
+		seq.push_back(d);
 	inForce_[key] = seq;
 	return v;
 }
@@ -180,26 +192,28 @@ std::string ParamReader::getPath(const std::string& key, const std::string& def)
 void ParamReader::requirePositive(double v, const std::string& key) const
 {
 	if (!(v > 0))
-		throw ConfigError(
-			(source_.empty() ? "" : source_ + ": ") + context_ + "." + key + ": must be > 0, got " +
-			std::to_string(v));
+		throw ConfigError((source_.empty() ? "" : source_ + ": ") + context_ + "." + key +
+		                  ": must be > 0, got " + std::to_string(v));
 }
 
 void ParamReader::finish() const
 {
-	if (!node_.isMap()) return;
+	if (!node_.isMap())
+		return;
 	std::string unknown;
 	for (const auto& kv : node_.asMap())
 	{
 		const auto k = kv.first.as<std::string>();
-		if (!used_.count(k)) unknown += (unknown.empty() ? "" : ", ") + k;
+		if (!used_.count(k))
+			unknown += (unknown.empty() ? "" : ", ") + k;
 	}
-	if (unknown.empty()) return;
+	if (unknown.empty())
+		return;
 	std::string known;
-	for (const auto& k : used_) known += (known.empty() ? "" : ", ") + k;
-	throw ConfigError(
-		(source_.empty() ? "" : source_ + ": ") + "unknown key(s) in '" + context_ + "': " +
-		unknown + " (known: " + known + ")");
+	for (const auto& k : used_)
+		known += (known.empty() ? "" : ", ") + k;
+	throw ConfigError((source_.empty() ? "" : source_ + ": ") + "unknown key(s) in '" + context_ +
+	                  "': " + unknown + " (known: " + known + ")");
 }
 
 }  // namespace rasterslam

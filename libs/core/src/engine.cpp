@@ -1,16 +1,16 @@
-#include <Eigen/Dense>
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/plugin_loader.h>
 
-#include "backend.h"
-
+#include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cmath>
+#include <ctime>
 #include <fstream>
 #include <random>
 #include <thread>
+
+#include "backend.h"
 
 namespace rasterslam
 {
@@ -45,12 +45,14 @@ LoopConstraint relocalizationConstraint(const RelocalizationResult& rl)
 	c.information *= 100;
 	return c;
 }
-const std::vector<std::string> kSections = {"plugins",		 "rasterizer", "odometry",
-											"map_manager",	 "loop_detector", "optimizer",
-											"engine"};
+const std::vector<std::string> kSections = {
+    "plugins", "rasterizer", "odometry", "map_manager", "loop_detector", "optimizer", "engine"};
 }  // namespace
 
-std::string rasterslamVersion() { return RASTERSLAM_VERSION; }
+std::string rasterslamVersion()
+{
+	return RASTERSLAM_VERSION;
+}
 
 namespace
 {
@@ -60,17 +62,23 @@ double procStatusMb(const std::string& key)
 	std::ifstream f("/proc/self/status");
 	std::string line;
 	while (std::getline(f, line))
-		if (line.rfind(key, 0) == 0) return std::stod(line.substr(key.size())) / 1024.0;
+		if (line.rfind(key, 0) == 0)
+			return std::stod(line.substr(key.size())) / 1024.0;
 	return -1;
 }
 }  // namespace
 
-double currentRssMb() { return procStatusMb("VmRSS:"); }
-double peakRssMb() { return procStatusMb("VmHWM:"); }
+double currentRssMb()
+{
+	return procStatusMb("VmRSS:");
+}
+double peakRssMb()
+{
+	return procStatusMb("VmHWM:");
+}
 
-Plugin::Ptr Engine::makeRole(
-	const yaml& cfg, const std::string& section, const mrpt::rtti::TRuntimeClassId* role,
-	bool required)
+Plugin::Ptr Engine::makeRole(const yaml& cfg, const std::string& section,
+                             const mrpt::rtti::TRuntimeClassId* role, bool required)
 {
 	if (!cfg.has(section) || cfg[section].isNullNode())
 	{
@@ -85,8 +93,8 @@ Plugin::Ptr Engine::makeRole(
 	{
 		const auto k = kv.first.as<std::string>();
 		if (k != "class" && k != "params")
-			throw ConfigError(
-				source_ + ": unknown key '" + section + "." + k + "' (expected class, params)");
+			throw ConfigError(source_ + ": unknown key '" + section + "." + k +
+			                  "' (expected class, params)");
 	}
 	if (!s.has("class") || !s["class"].isScalar())
 		throw ConfigError(source_ + ": key '" + section + ".class' is required (a class name)");
@@ -111,16 +119,18 @@ Plugin::Ptr Engine::makeRole(
 }
 
 Engine::Engine(const yaml& cfg, const std::string& configSource)
-	: mrpt::system::COutputLogger("engine"), source_(configSource)
+    : mrpt::system::COutputLogger("engine"), source_(configSource)
 {
-	if (!cfg.isMap()) throw ConfigError(source_ + ": expected a map of sections");
+	if (!cfg.isMap())
+		throw ConfigError(source_ + ": expected a map of sections");
 	for (const auto& kv : cfg.asMap())
 	{
 		const auto k = kv.first.as<std::string>();
 		if (std::find(kSections.begin(), kSections.end(), k) == kSections.end())
 		{
 			std::string list;
-			for (const auto& s : kSections) list += (list.empty() ? "" : ", ") + s;
+			for (const auto& s : kSections)
+				list += (list.empty() ? "" : ", ") + s;
 			throw ConfigError(source_ + ": unknown section '" + k + "' (known: " + list + ")");
 		}
 	}
@@ -129,9 +139,11 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 	{
 		if (!cfg["plugins"].isSequence())
 			throw ConfigError(source_ + ": 'plugins' must be a list of module file names");
-		for (const auto& m : cfg["plugins"].asSequence()) modules.push_back(m.as<std::string>());
+		for (const auto& m : cfg["plugins"].asSequence())
+			modules.push_back(m.as<std::string>());
 		yaml seq = yaml::Sequence();
-		for (const auto& m : modules) seq.push_back(m);
+		for (const auto& m : modules)
+			seq.push_back(m);
 		inForce_["plugins"] = seq;
 	}
 	PluginLoader::instance().load(modules);
@@ -149,8 +161,8 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		optimizeOnline_ = p.getBool("optimize_online", optimizeOnline_);
 		optimizeEveryKeyframes_ = p.getInt("optimize_every_keyframes", optimizeEveryKeyframes_);
 		optimizeOnlineWindow_ =
-			p.getChoice("optimize_online_window", optimizeOnlineWindow_ ? "online_maps" : "all", {"online_maps", "all"}) ==
-			"online_maps";
+		    p.getChoice("optimize_online_window", optimizeOnlineWindow_ ? "online_maps" : "all",
+		                {"online_maps", "all"}) == "online_maps";
 		testCorruptLoops_ = p.getDouble("test_corrupt_loops", testCorruptLoops_);
 		anchorMinAgreeing_ = p.getInt("anchor_min_agreeing", anchorMinAgreeing_);
 		anchorAgree_m_ = p.getDouble("anchor_agree_m", anchorAgree_m_);
@@ -159,9 +171,11 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		anchorHitSpacing_s_ = p.getDouble("anchor_hit_spacing_s", anchorHitSpacing_s_);
 		if (!(anchorHitSpacing_s_ >= 0))
 			throw ConfigError(source_ + ": key 'engine.anchor_hit_spacing_s' must be >= 0");
-		if (anchorMinAgreeing_ < 1) throw ConfigError(source_ + ": key 'engine.anchor_min_agreeing' must be >= 1");
+		if (anchorMinAgreeing_ < 1)
+			throw ConfigError(source_ + ": key 'engine.anchor_min_agreeing' must be >= 1");
 		if (!(anchorAgree_m_ > 0) || !(anchorAgree_deg_ > 0))
-			throw ConfigError(source_ + ": keys 'engine.anchor_agree_m' and 'anchor_agree_deg' must be > 0");
+			throw ConfigError(source_ +
+			                  ": keys 'engine.anchor_agree_m' and 'anchor_agree_deg' must be > 0");
 		if (optimizeEveryKeyframes_ < 1)
 			throw ConfigError(source_ + ": key 'engine.optimize_every_keyframes' must be >= 1");
 		if (!(testCorruptLoops_ >= 0 && testCorruptLoops_ <= 1))
@@ -169,28 +183,31 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		if (!(rawlogOdoSigma_m_ > 0) || !(rawlogOdoSigma_deg_ > 0))
 			throw ConfigError(source_ + ": engine.rawlog_odometry_sigma_m and _deg must be > 0");
 		p.finish();
-		if (minPoints_ < 1) throw ConfigError(source_ + ": key 'engine.min_points' must be >= 1");
+		if (minPoints_ < 1)
+			throw ConfigError(source_ + ": key 'engine.min_points' must be >= 1");
 		inForce_["engine"] = p.inForce();
 	}
 	rasterizer_ = std::dynamic_pointer_cast<Rasterizer>(
-		makeRole(cfg, "rasterizer", CLASS_ID(Rasterizer), false));
+	    makeRole(cfg, "rasterizer", CLASS_ID(Rasterizer), false));
 	odometry_ =
-		std::dynamic_pointer_cast<Odometry>(makeRole(cfg, "odometry", CLASS_ID(Odometry), true));
+	    std::dynamic_pointer_cast<Odometry>(makeRole(cfg, "odometry", CLASS_ID(Odometry), true));
 	mapManager_ = std::dynamic_pointer_cast<MapManager>(
-		makeRole(cfg, "map_manager", CLASS_ID(MapManager), false));
+	    makeRole(cfg, "map_manager", CLASS_ID(MapManager), false));
 	loopDetector_ = std::dynamic_pointer_cast<LoopDetector>(
-		makeRole(cfg, "loop_detector", CLASS_ID(LoopDetector), false));
+	    makeRole(cfg, "loop_detector", CLASS_ID(LoopDetector), false));
 	optimizer_ = std::dynamic_pointer_cast<Optimizer>(
-		makeRole(cfg, "optimizer", CLASS_ID(Optimizer), false));
+	    makeRole(cfg, "optimizer", CLASS_ID(Optimizer), false));
 	if (loopDetector_ && !mapManager_)
-		throw ConfigError(
-			source_ + ": section 'loop_detector' needs a 'map_manager' (it queries the map the manager keeps), e.g. "
-					  "map_manager: {class: rasterslam::LocalMapManager}");
+		throw ConfigError(source_ +
+		                  ": section 'loop_detector' needs a 'map_manager' (it queries the map the "
+		                  "manager keeps), e.g. "
+		                  "map_manager: {class: rasterslam::LocalMapManager}");
 }
 
 void Engine::loadMap(const std::string& dir)
 {
-	if (!mapManager_) throw std::runtime_error("loading a map needs a map_manager in the config");
+	if (!mapManager_)
+		throw std::runtime_error("loading a map needs a map_manager in the config");
 	mapManager_->loadMap(dir);
 	if (loopDetector_)
 	{
@@ -207,9 +224,11 @@ void Engine::loadMap(const std::string& dir)
 
 void Engine::saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses3DInf& graph)
 {
-	if (!mapManager_) throw std::runtime_error("saving a map needs a map_manager in the config");
+	if (!mapManager_)
+		throw std::runtime_error("saving a map needs a map_manager in the config");
 	PoseView poses;
-	poses.live = [&graph](uint64_t id) -> const mrpt::poses::CPose3D* {
+	poses.live = [&graph](uint64_t id) -> const mrpt::poses::CPose3D*
+	{
 		const auto it = graph.nodes.find(id);
 		return it == graph.nodes.end() ? nullptr : &it->second;
 	};
@@ -227,13 +246,15 @@ void Engine::saveMap(const std::string& dir, const mrpt::graphs::CNetworkOfPoses
 void Engine::setLogLevel(mrpt::system::VerbosityLevel level)
 {
 	setMinLoggingLevel(level);
-	for (Plugin* p : std::initializer_list<Plugin*>{
-			 rasterizer_.get(), odometry_.get(), mapManager_.get(), loopDetector_.get(),
-			 optimizer_.get()})
-		if (p) p->setMinLoggingLevel(level);
+	for (Plugin* p :
+	     std::initializer_list<Plugin*>{rasterizer_.get(), odometry_.get(), mapManager_.get(),
+	                                    loopDetector_.get(), optimizer_.get()})
+		if (p)
+			p->setMinLoggingLevel(level);
 }
 
-mrpt::graphs::CNetworkOfPoses3DInf::edge_t Engine::rawlogOdometryEdge(const mrpt::poses::CPose3DPDFGaussian& odo) const
+mrpt::graphs::CNetworkOfPoses3DInf::edge_t Engine::rawlogOdometryEdge(
+    const mrpt::poses::CPose3DPDFGaussian& odo) const
 {
 	mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
 	e.mean = odo.mean;
@@ -243,8 +264,10 @@ mrpt::graphs::CNetworkOfPoses3DInf::edge_t Engine::rawlogOdometryEdge(const mrpt
 		// No usable covariance in the input: the configured model.
 		e.cov_inv.setZero();
 		const double st = rawlogOdoSigma_m_, sr = rawlogOdoSigma_deg_ * M_PI / 180;
-		for (int i = 0; i < 3; i++) e.cov_inv(i, i) = 1 / (st * st);
-		for (int i = 3; i < 6; i++) e.cov_inv(i, i) = 1 / (sr * sr);
+		for (int i = 0; i < 3; i++)
+			e.cov_inv(i, i) = 1 / (st * st);
+		for (int i = 3; i < 6; i++)
+			e.cov_inv(i, i) = 1 / (sr * sr);
 	}
 	else
 		e.cov_inv = C.inverse_LLt();
@@ -271,8 +294,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	bs.optimizeEveryKeyframes = optimizeEveryKeyframes_;
 	bs.optimizeOnlineWindow = optimizeOnlineWindow_;
 	bs.testCorruptLoops = testCorruptLoops_;
-	detail::Backend backend(
-		mapManager_.get(), loopDetector_.get(), optimizer_.get(), bs, res, *this, !opts.realtime);
+	detail::Backend backend(mapManager_.get(), loopDetector_.get(), optimizer_.get(), bs, res,
+	                        *this, !opts.realtime);
 	const PoseView& poses = backend.poses();
 	const double cpu0 = detail::threadCpuSeconds();
 	bool lostSinceKf = false;
@@ -302,363 +325,399 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	std::size_t currentIndex = 0;
 	try
 	{
-	for (;;)
-	{
-		const auto tRead = Clock::now();
-		std::optional<Scan> scan = source.next();
-		const double readMs = msSince(tRead);
-		if (!scan) break;
-		if (opts.first && scan->index < *opts.first) continue;
-		if (opts.last && scan->index > *opts.last) break;
-		currentIndex = scan->index;
-		// The input's odometry of every scan counts, also of a scan dropped below.
-		if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
+		for (;;)
 		{
-			if (!odoSinceKf) odoSinceKf = *scan->odometryIncrement;
-			else
-				*odoSinceKf += *scan->odometryIncrement;
-		}
-
-		// Bad scans: non-finite coordinates or too few points.
-		std::size_t nonFinite = 0;
-		for (const auto& p : scan->points)
-			if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) ++nonFinite;
-		if (nonFinite > 0 && dropNonFinite_)
-		{
-			// Organized clouds mark "no return" with NaN: drop those points only.
-			auto& v = scan->points;
-			v.erase(std::remove_if(v.begin(), v.end(), [](const PointXYZI& p) {
-				return !std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z);
-			}), v.end());
-		}
-		if ((nonFinite > 0 && !dropNonFinite_) || scan->points.size() < static_cast<std::size_t>(minPoints_))
-		{
-			const std::string what = nonFinite > 0 && !dropNonFinite_
-				? mrpt::format(
-					  "%s: scan #%zu (t=%.6f) has %zu non-finite points (NaN or inf) among %zu; set "
-					  "engine.drop_nonfinite_points: true to drop such points",
-					  source.name().c_str(), scan->index, scan->stamp, nonFinite, scan->points.size())
-				: mrpt::format(
-					  "%s: scan #%zu (t=%.6f) has %zu points; expected at least %d (engine.min_points)",
-					  source.name().c_str(), scan->index, scan->stamp, scan->points.size(), minPoints_);
-			if (!skipBadScans_)
-			{
-				res.error = what + "; set engine.on_bad_scan: skip to drop such scans";
+			const auto tRead = Clock::now();
+			std::optional<Scan> scan = source.next();
+			const double readMs = msSince(tRead);
+			if (!scan)
 				break;
-			}
-			MRPT_LOG_WARN_STREAM(what << "; skipped");
-			++res.skippedBadScans;
-			continue;
-		}
-
-		if (!firstStamp)
-		{
-			firstStamp = scan->stamp;
-			if (mapManager_)
+			if (opts.first && scan->index < *opts.first)
+				continue;
+			if (opts.last && scan->index > *opts.last)
+				break;
+			currentIndex = scan->index;
+			// The input's odometry of every scan counts, also of a scan dropped below.
+			if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
 			{
-				SessionRecord session;
-				session.firstStamp = scan->stamp;
-				session.sensor = scan->sensorLabel;
-				session.input = source.name();
-				session.startedAt = isoTimeNow();
-				std::lock_guard<std::mutex> lk(backend.mapMutex());
-				mapManager_->describeSession(session);
-			}
-		}
-		ScanRecord rec;
-		rec.index = scan->index;
-		rec.stamp = scan->stamp;
-		rec.numPoints = scan->points.size();
-		if (scan->groundTruth) rec.groundTruth = scan->groundTruth->asTPose();
-		rec.ms.read = readMs;
-
-		if (opts.realtime)
-		{
-			const double due_s = (scan->stamp - *firstStamp) / std::max(opts.rate, 1e-6);
-			const auto due = wall0 + std::chrono::duration_cast<Clock::duration>(
-										 std::chrono::duration<double>(due_s));
-			if (Clock::now() < due) std::this_thread::sleep_until(due);
-			else if (std::chrono::duration<double>(Clock::now() - due).count() > 1e-3)
-			{
-				rec.late = true;
-				++res.late;
-			}
-		}
-		const auto tScan = Clock::now();
-
-		const RasterFrame* rasterPtr = nullptr;
-		if (rasterizer_)
-		{
-			const auto t0 = Clock::now();
-			rasterizer_->rasterize(*scan, raster);
-			rasterPtr = &raster;
-			rec.ms.rasterize = msSince(t0);
-			if (opts.onRaster) opts.onRaster(*scan, raster);
-		}
-
-		const auto tOdo = Clock::now();
-		const OdometryResult odo = odometry_->process(*scan, rasterPtr);
-		rec.ms.odometry = msSince(tOdo);
-		rec.status = odo.status;
-		rec.inliers = odo.inliers;
-		if (odo.status == TrackingStatus::Lost)
-		{
-			++res.lost;
-			if (!(loopDetector_ && rasterPtr && relocalizeOnLoss_ && anchored)) lostSinceKf = true;
-			MRPT_LOG_THROTTLE_WARN_STREAM(
-				1.0, "scan " << scan->index << ": tracking lost (" << odo.message
-							 << "); using the motion prior");
-		}
-		if (haveKf)
-		{
-			// The back end may have moved the keyframe (local BA, a loop): track from there.
-			std::lock_guard<std::mutex> lk(backend.graphMutex());
-			lastKfPose = graph.nodes.at(lastKf);
-		}
-		if (!haveKf) currPose = mrpt::poses::CPose3D();
-		else if (odo.T_kf_curr)
-			currPose = lastKfPose + *odo.T_kf_curr;
-		else
-			currPose = lastKfPose + (T_kf_prev + odo.T_prev_curr);
-		++stepsSinceKf;
-
-		// Relocalization (paper, "Re-localization"): at the start of a session with a prior
-		// map, and whenever tracking is lost, the scan queries the loop detector's database
-		// with no pose prior. Found: the pose comes from the map (and, if the matched keyframe
-		// is in this run's graph, a constraint to it). Not found: tracking goes on from the
-		// motion prior, linked to the past only by a weak edge: a new, disconnected part that
-		// a later loop closure can join.
-		std::optional<LoopConstraint> relocEdge;
-		const bool atKeyframe = !haveKf || odo.keyframe;
-		if (loopDetector_ && rasterPtr && !anchored && (atKeyframe || anchorEveryScan_))
-		{
-			// A session in a prior map: try every scan (or keyframe) until it is found there,
-			// then move everything tracked so far into the map's frame.
-			const auto t0 = Clock::now();
-			// Held until the session is moved into the map's frame: the back end must not see
-			// half of it (it holds this lock for a whole keyframe's work).
-			std::lock_guard<std::mutex> mapLock(backend.mapMutex());
-			const Map& map = mapManager_->map();
-			const RelocalizationResult rl = loopDetector_->relocalize(*scan, *rasterPtr, map, poses);
-			// Only an earlier session's local map can anchor this one (its own are in its own
-			// frame).
-			const bool earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
-			rec.ms.loop += msSince(t0);
-			// Hits count when they are apart in time: neighbouring scans see the same place and
-			// would agree whether it is the right one or not.
-			if (earlier && (!lastAnchorHitStamp || scan->stamp >= *lastAnchorHitStamp + anchorHitSpacing_s_))
-			{
-				// Where this hit puts the session's frame in the map's. One hit is not enough: a
-				// wrong place can match as well as the right one, so the session is anchored only
-				// when engine.anchor_min_agreeing hits agree on it.
-				const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
-				anchorHits.push_back(C);
-				lastAnchorHitStamp = scan->stamp;
-				std::size_t agreeing = 0;
-				for (const auto& h : anchorHits)
-				{
-					// Compared where the vehicle is now: a heading difference then counts as the
-					// offset it makes here, not at the session's origin.
-					agreeing += anchorsAgree((h + currPose) - rl.pose);
-				}
-				res.anchorHits = anchorHits.size();
-				if (agreeing >= static_cast<std::size_t>(anchorMinAgreeing_))
-				{
-					// The anchoring is made at a keyframe (a graph node): this one, or the next.
-					anchorReady = AnchorHit{rl, currPose};
-					MRPT_LOG_INFO_STREAM(
-						"scan " << scan->index << ": located in the prior map (local map " << rl.localMap << ", "
-								<< rl.inliers << " inliers; " << agreeing << " of " << anchorHits.size()
-								<< " hits agree)");
-				}
+				if (!odoSinceKf)
+					odoSinceKf = *scan->odometryIncrement;
 				else
-					MRPT_LOG_INFO_STREAM(
-						"scan " << scan->index << ": a place in the prior map (local map " << rl.localMap << ", "
-								<< rl.inliers << " inliers): " << agreeing << " of " << anchorMinAgreeing_
-								<< " agreeing hits needed to anchor");
+					*odoSinceKf += *scan->odometryIncrement;
 			}
-			else if (!earlier)
-			{
-				++res.relocalizationFailures;
-				MRPT_LOG_THROTTLE_WARN_STREAM(
-					1.0, "scan " << scan->index << ": not located in the prior map yet (" << rl.reason << ")");
-			}
-		}
-		if (anchorReady && !anchored && atKeyframe)
-		{
-			// The hit's pose, carried to this scan by the odometry since.
-			const auto& [rl, poseAtHit] = *anchorReady;
-			const mrpt::poses::CPose3D sinceHit = currPose - poseAtHit;
-			const mrpt::poses::CPose3D here = rl.pose + sinceHit;
-			const mrpt::poses::CPose3D C = here + (mrpt::poses::CPose3D() - currPose);
-			{
-				std::lock_guard<std::mutex> lk(backend.graphMutex());
-				for (auto& [id, p] : graph.nodes) p = C + p;
-			}
-			lastKfPose = C + lastKfPose;
-			currPose = here;
-			anchored = true;
-			res.localized = true;
-			backend.setAnchored();
-			// The hit ties the session to the map in the graph (from this keyframe).
-			relocEdge = relocalizationConstraint(rl);
-			relocEdge->T_from_to = here - rl.keyframePose;
-			++res.relocalized;
-			anchorReady.reset();
-		}
-		if (!relocEdge &&
-			anchored && loopDetector_ && rasterPtr && haveKf && odo.status == TrackingStatus::Lost &&
-			relocalizeOnLoss_)
-		{
-			const auto t0 = Clock::now();
-			RelocalizationResult rl;
-			{
-				std::lock_guard<std::mutex> lk(backend.mapMutex());
-				rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
-			}
-			rec.ms.loop += msSince(t0);
-			std::optional<mrpt::poses::CPose3D> matched;  // the keyframe, when a node of this graph
-			if (const auto* p = poses.live(rl.keyframe)) matched = *p;
-			if (rl.found)
-			{
-				++res.relocalized;
-				MRPT_LOG_INFO_STREAM(
-					"scan " << scan->index << ": relocalized in local map " << rl.localMap << " (keyframe "
-							<< rl.keyframe << ", " << rl.inliers << " inliers)");
-				if (matched)
-				{
-					relocEdge = relocalizationConstraint(rl);
-					currPose = *matched + relocEdge->T_from_to;
-				}
-				else
-					currPose = rl.pose;  // a keyframe of the prior map: already its frame
-			}
-			else
-			{
-				++res.relocalizationFailures;
-				lostSinceKf = true;
-				MRPT_LOG_THROTTLE_WARN_STREAM(
-					1.0, "scan " << scan->index << ": relocalization failed (" << rl.reason
-								 << "): a new, disconnected part of the map starts here");
-			}
-		}
 
-		if (!haveKf || odo.keyframe)
-		{
-			const bool haveKfBefore = haveKf;
-			const mrpt::graphs::TNodeID id = nextNode++;
+			// Bad scans: non-finite coordinates or too few points.
+			std::size_t nonFinite = 0;
+			for (const auto& p : scan->points)
+				if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+					++nonFinite;
+			if (nonFinite > 0 && dropNonFinite_)
 			{
-				std::lock_guard<std::mutex> lk(backend.graphMutex());
-				if (haveKf)
-				{
-					// The back end may have moved the last keyframe since this scan read it (only
-					// then recompose: composing a rotation with its own inverse feeds rounding
-					// into every later keyframe).
-					const mrpt::poses::CPose3D kfNow = graph.nodes.at(lastKf);
-					if (!(kfNow == lastKfPose))
-					{
-						currPose = kfNow + (currPose - lastKfPose);
-						lastKfPose = kfNow;
-					}
-				}
-				graph.nodes[id] = currPose;
-				if (haveKf)
-				{
-					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
-					e.mean = currPose - lastKfPose;
-					// Information of a chain of n steps is roughly 1/n of one step's; an
-					// odometry that tracks against the keyframe gives the edge's own.
-					e.cov_inv = odo.information;
-					if (!odo.T_kf_curr) e.cov_inv *= 1.0 / static_cast<double>(stepsSinceKf);
-					graph.insertEdge(lastKf, id, e);
-					if (odoSinceKf)
-					{
-						graph.insertEdge(lastKf, id, rawlogOdometryEdge(*odoSinceKf));
-						++res.odometryEdges;
-					}
-				}
-				odoSinceKf.reset();
-				if (relocEdge && !graph.nodes.count(relocEdge->from))
-				{
-					// A keyframe of an earlier session: it enters the graph, fixed.
-					if (const auto* prior = poses.prior; prior && prior->count(relocEdge->from))
-						backend.addFixedNode(relocEdge->from, prior->at(relocEdge->from));
-					else
-						relocEdge.reset();
-				}
-				if (relocEdge)
-				{
-					mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
-					e.mean = relocEdge->T_from_to;
-					e.cov_inv = relocEdge->information;
-					graph.insertEdge(relocEdge->from, id, e);
-					res.uncertainEdges.insert({relocEdge->from, id});
-					++res.loopEdges;
-					backend.requestOptimization();
-				}
+				// Organized clouds mark "no return" with NaN: drop those points only.
+				auto& v = scan->points;
+				v.erase(std::remove_if(v.begin(), v.end(),
+				                       [](const PointXYZI& p) {
+					                       return !std::isfinite(p.x) || !std::isfinite(p.y) ||
+					                              !std::isfinite(p.z);
+				                       }),
+				        v.end());
 			}
-			lastKf = id;
-			lastKfPose = currPose;
-			haveKf = true;
-			stepsSinceKf = 0;
-			rec.keyframe = true;
-			++res.keyframes;
+			if ((nonFinite > 0 && !dropNonFinite_) ||
+			    scan->points.size() < static_cast<std::size_t>(minPoints_))
+			{
+				const std::string what =
+				    nonFinite > 0 && !dropNonFinite_
+				        ? mrpt::format(
+				              "%s: scan #%zu (t=%.6f) has %zu non-finite points (NaN or inf) among "
+				              "%zu; set "
+				              "engine.drop_nonfinite_points: true to drop such points",
+				              source.name().c_str(), scan->index, scan->stamp, nonFinite,
+				              scan->points.size())
+				        : mrpt::format(
+				              "%s: scan #%zu (t=%.6f) has %zu points; expected at least %d "
+				              "(engine.min_points)",
+				              source.name().c_str(), scan->index, scan->stamp, scan->points.size(),
+				              minPoints_);
+				if (!skipBadScans_)
+				{
+					res.error = what + "; set engine.on_bad_scan: skip to drop such scans";
+					break;
+				}
+				MRPT_LOG_WARN_STREAM(what << "; skipped");
+				++res.skippedBadScans;
+				continue;
+			}
 
-			detail::KeyframeJob job;
-			job.kf = KeyframeInfo{id, scan->index, scan->stamp, currPose, odo.keyframeData, lostSinceKf && haveKfBefore, {}};
-			if (relocEdge) job.kf.locatedAt = relocEdge->from;
-			lostSinceKf = false;
-			if (job.kf.data)
+			if (!firstStamp)
 			{
-				job.kf.data->id = id;
-				job.kf.data->scanIndex = scan->index;
-				job.kf.data->stamp = scan->stamp;
-				job.kf.data->pose = currPose;
+				firstStamp = scan->stamp;
+				if (mapManager_)
+				{
+					SessionRecord session;
+					session.firstStamp = scan->stamp;
+					session.sensor = scan->sensorLabel;
+					session.input = source.name();
+					session.startedAt = isoTimeNow();
+					std::lock_guard<std::mutex> lk(backend.mapMutex());
+					mapManager_->describeSession(session);
+				}
 			}
-			job.record = res.scans.size();
+			ScanRecord rec;
+			rec.index = scan->index;
+			rec.stamp = scan->stamp;
+			rec.numPoints = scan->points.size();
+			if (scan->groundTruth)
+				rec.groundTruth = scan->groundTruth->asTPose();
+			rec.ms.read = readMs;
+
 			if (opts.realtime)
 			{
-				// The worker keeps its own copies: the tracking goes on with the next scan.
-				job.scan = std::make_shared<const Scan>(*scan);
-				if (rasterPtr)
+				const double due_s = (scan->stamp - *firstStamp) / std::max(opts.rate, 1e-6);
+				const auto due = wall0 + std::chrono::duration_cast<Clock::duration>(
+				                             std::chrono::duration<double>(due_s));
+				if (Clock::now() < due)
+					std::this_thread::sleep_until(due);
+				else if (std::chrono::duration<double>(Clock::now() - due).count() > 1e-3)
 				{
-					auto copy = std::make_shared<RasterFrame>(raster);
-					copy->image = raster.image.makeDeepCopy();  // CImage copies share pixels
-					job.raster = copy;
+					rec.late = true;
+					++res.late;
 				}
 			}
-			else
+			const auto tScan = Clock::now();
+
+			const RasterFrame* rasterPtr = nullptr;
+			if (rasterizer_)
 			{
-				// Done before submit() returns: no copy needed.
-				job.scan = std::shared_ptr<const Scan>(&*scan, [](const Scan*) {});
-				if (rasterPtr) job.raster = std::shared_ptr<const RasterFrame>(rasterPtr, [](const RasterFrame*) {});
+				const auto t0 = Clock::now();
+				rasterizer_->rasterize(*scan, raster);
+				rasterPtr = &raster;
+				rec.ms.rasterize = msSince(t0);
+				if (opts.onRaster)
+					opts.onRaster(*scan, raster);
 			}
-			if (mapManager_ || loopDetector_) backend.submit(std::move(job));
-			if (!opts.realtime)
+
+			const auto tOdo = Clock::now();
+			const OdometryResult odo = odometry_->process(*scan, rasterPtr);
+			rec.ms.odometry = msSince(tOdo);
+			rec.status = odo.status;
+			rec.inliers = odo.inliers;
+			if (odo.status == TrackingStatus::Lost)
 			{
-				// Local BA or an optimization may have moved this keyframe.
+				++res.lost;
+				if (!(loopDetector_ && rasterPtr && relocalizeOnLoss_ && anchored))
+					lostSinceKf = true;
+				MRPT_LOG_THROTTLE_WARN_STREAM(1.0, "scan " << scan->index << ": tracking lost ("
+				                                           << odo.message
+				                                           << "); using the motion prior");
+			}
+			if (haveKf)
+			{
+				// The back end may have moved the keyframe (local BA, a loop): track from there.
 				std::lock_guard<std::mutex> lk(backend.graphMutex());
-				lastKfPose = currPose = graph.nodes.at(id);
+				lastKfPose = graph.nodes.at(lastKf);
 			}
+			if (!haveKf)
+				currPose = mrpt::poses::CPose3D();
+			else if (odo.T_kf_curr)
+				currPose = lastKfPose + *odo.T_kf_curr;
+			else
+				currPose = lastKfPose + (T_kf_prev + odo.T_prev_curr);
+			++stepsSinceKf;
+
+			// Relocalization (paper, "Re-localization"): at the start of a session with a prior
+			// map, and whenever tracking is lost, the scan queries the loop detector's database
+			// with no pose prior. Found: the pose comes from the map (and, if the matched keyframe
+			// is in this run's graph, a constraint to it). Not found: tracking goes on from the
+			// motion prior, linked to the past only by a weak edge: a new, disconnected part that
+			// a later loop closure can join.
+			std::optional<LoopConstraint> relocEdge;
+			const bool atKeyframe = !haveKf || odo.keyframe;
+			if (loopDetector_ && rasterPtr && !anchored && (atKeyframe || anchorEveryScan_))
+			{
+				// A session in a prior map: try every scan (or keyframe) until it is found there,
+				// then move everything tracked so far into the map's frame.
+				const auto t0 = Clock::now();
+				// Held until the session is moved into the map's frame: the back end must not see
+				// half of it (it holds this lock for a whole keyframe's work).
+				std::lock_guard<std::mutex> mapLock(backend.mapMutex());
+				const Map& map = mapManager_->map();
+				const RelocalizationResult rl =
+				    loopDetector_->relocalize(*scan, *rasterPtr, map, poses);
+				// Only an earlier session's local map can anchor this one (its own are in its own
+				// frame).
+				const bool earlier =
+				    rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
+				rec.ms.loop += msSince(t0);
+				// Hits count when they are apart in time: neighbouring scans see the same place and
+				// would agree whether it is the right one or not.
+				if (earlier && (!lastAnchorHitStamp ||
+				                scan->stamp >= *lastAnchorHitStamp + anchorHitSpacing_s_))
+				{
+					// Where this hit puts the session's frame in the map's. One hit is not enough:
+					// a wrong place can match as well as the right one, so the session is anchored
+					// only when engine.anchor_min_agreeing hits agree on it.
+					const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
+					anchorHits.push_back(C);
+					lastAnchorHitStamp = scan->stamp;
+					std::size_t agreeing = 0;
+					for (const auto& h : anchorHits)
+					{
+						// Compared where the vehicle is now: a heading difference then counts as
+						// the offset it makes here, not at the session's origin.
+						agreeing += anchorsAgree((h + currPose) - rl.pose);
+					}
+					res.anchorHits = anchorHits.size();
+					if (agreeing >= static_cast<std::size_t>(anchorMinAgreeing_))
+					{
+						// The anchoring is made at a keyframe (a graph node): this one, or the
+						// next.
+						anchorReady = AnchorHit{rl, currPose};
+						MRPT_LOG_INFO_STREAM(
+						    "scan " << scan->index << ": located in the prior map (local map "
+						            << rl.localMap << ", " << rl.inliers << " inliers; " << agreeing
+						            << " of " << anchorHits.size() << " hits agree)");
+					}
+					else
+						MRPT_LOG_INFO_STREAM(
+						    "scan " << scan->index << ": a place in the prior map (local map "
+						            << rl.localMap << ", " << rl.inliers
+						            << " inliers): " << agreeing << " of " << anchorMinAgreeing_
+						            << " agreeing hits needed to anchor");
+				}
+				else if (!earlier)
+				{
+					++res.relocalizationFailures;
+					MRPT_LOG_THROTTLE_WARN_STREAM(
+					    1.0, "scan " << scan->index << ": not located in the prior map yet ("
+					                 << rl.reason << ")");
+				}
+			}
+			if (anchorReady && !anchored && atKeyframe)
+			{
+				// The hit's pose, carried to this scan by the odometry since.
+				const auto& [rl, poseAtHit] = *anchorReady;
+				const mrpt::poses::CPose3D sinceHit = currPose - poseAtHit;
+				const mrpt::poses::CPose3D here = rl.pose + sinceHit;
+				const mrpt::poses::CPose3D C = here + (mrpt::poses::CPose3D() - currPose);
+				{
+					std::lock_guard<std::mutex> lk(backend.graphMutex());
+					for (auto& [id, p] : graph.nodes)
+						p = C + p;
+				}
+				lastKfPose = C + lastKfPose;
+				currPose = here;
+				anchored = true;
+				res.localized = true;
+				backend.setAnchored();
+				// The hit ties the session to the map in the graph (from this keyframe).
+				relocEdge = relocalizationConstraint(rl);
+				relocEdge->T_from_to = here - rl.keyframePose;
+				++res.relocalized;
+				anchorReady.reset();
+			}
+			if (!relocEdge && anchored && loopDetector_ && rasterPtr && haveKf &&
+			    odo.status == TrackingStatus::Lost && relocalizeOnLoss_)
+			{
+				const auto t0 = Clock::now();
+				RelocalizationResult rl;
+				{
+					std::lock_guard<std::mutex> lk(backend.mapMutex());
+					rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
+				}
+				rec.ms.loop += msSince(t0);
+				std::optional<mrpt::poses::CPose3D>
+				    matched;  // the keyframe, when a node of this graph
+				if (const auto* p = poses.live(rl.keyframe))
+					matched = *p;
+				if (rl.found)
+				{
+					++res.relocalized;
+					MRPT_LOG_INFO_STREAM("scan " << scan->index << ": relocalized in local map "
+					                             << rl.localMap << " (keyframe " << rl.keyframe
+					                             << ", " << rl.inliers << " inliers)");
+					if (matched)
+					{
+						relocEdge = relocalizationConstraint(rl);
+						currPose = *matched + relocEdge->T_from_to;
+					}
+					else
+						currPose = rl.pose;  // a keyframe of the prior map: already its frame
+				}
+				else
+				{
+					++res.relocalizationFailures;
+					lostSinceKf = true;
+					MRPT_LOG_THROTTLE_WARN_STREAM(
+					    1.0, "scan " << scan->index << ": relocalization failed (" << rl.reason
+					                 << "): a new, disconnected part of the map starts here");
+				}
+			}
+
+			if (!haveKf || odo.keyframe)
+			{
+				const bool haveKfBefore = haveKf;
+				const mrpt::graphs::TNodeID id = nextNode++;
+				{
+					std::lock_guard<std::mutex> lk(backend.graphMutex());
+					if (haveKf)
+					{
+						// The back end may have moved the last keyframe since this scan read it
+						// (only then recompose: composing a rotation with its own inverse feeds
+						// rounding into every later keyframe).
+						const mrpt::poses::CPose3D kfNow = graph.nodes.at(lastKf);
+						if (!(kfNow == lastKfPose))
+						{
+							currPose = kfNow + (currPose - lastKfPose);
+							lastKfPose = kfNow;
+						}
+					}
+					graph.nodes[id] = currPose;
+					if (haveKf)
+					{
+						mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+						e.mean = currPose - lastKfPose;
+						// Information of a chain of n steps is roughly 1/n of one step's; an
+						// odometry that tracks against the keyframe gives the edge's own.
+						e.cov_inv = odo.information;
+						if (!odo.T_kf_curr)
+							e.cov_inv *= 1.0 / static_cast<double>(stepsSinceKf);
+						graph.insertEdge(lastKf, id, e);
+						if (odoSinceKf)
+						{
+							graph.insertEdge(lastKf, id, rawlogOdometryEdge(*odoSinceKf));
+							++res.odometryEdges;
+						}
+					}
+					odoSinceKf.reset();
+					if (relocEdge && !graph.nodes.count(relocEdge->from))
+					{
+						// A keyframe of an earlier session: it enters the graph, fixed.
+						if (const auto* prior = poses.prior; prior && prior->count(relocEdge->from))
+							backend.addFixedNode(relocEdge->from, prior->at(relocEdge->from));
+						else
+							relocEdge.reset();
+					}
+					if (relocEdge)
+					{
+						mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+						e.mean = relocEdge->T_from_to;
+						e.cov_inv = relocEdge->information;
+						graph.insertEdge(relocEdge->from, id, e);
+						res.uncertainEdges.insert({relocEdge->from, id});
+						++res.loopEdges;
+						backend.requestOptimization();
+					}
+				}
+				lastKf = id;
+				lastKfPose = currPose;
+				haveKf = true;
+				stepsSinceKf = 0;
+				rec.keyframe = true;
+				++res.keyframes;
+
+				detail::KeyframeJob job;
+				job.kf = KeyframeInfo{id,       scan->index,      scan->stamp,
+				                      currPose, odo.keyframeData, lostSinceKf && haveKfBefore,
+				                      {}};
+				if (relocEdge)
+					job.kf.locatedAt = relocEdge->from;
+				lostSinceKf = false;
+				if (job.kf.data)
+				{
+					job.kf.data->id = id;
+					job.kf.data->scanIndex = scan->index;
+					job.kf.data->stamp = scan->stamp;
+					job.kf.data->pose = currPose;
+				}
+				job.record = res.scans.size();
+				if (opts.realtime)
+				{
+					// The worker keeps its own copies: the tracking goes on with the next scan.
+					job.scan = std::make_shared<const Scan>(*scan);
+					if (rasterPtr)
+					{
+						auto copy = std::make_shared<RasterFrame>(raster);
+						copy->image = raster.image.makeDeepCopy();  // CImage copies share pixels
+						job.raster = copy;
+					}
+				}
+				else
+				{
+					// Done before submit() returns: no copy needed.
+					job.scan = std::shared_ptr<const Scan>(&*scan, [](const Scan*) {});
+					if (rasterPtr)
+						job.raster = std::shared_ptr<const RasterFrame>(rasterPtr,
+						                                                [](const RasterFrame*) {});
+				}
+				if (mapManager_ || loopDetector_)
+					backend.submit(std::move(job));
+				if (!opts.realtime)
+				{
+					// Local BA or an optimization may have moved this keyframe.
+					std::lock_guard<std::mutex> lk(backend.graphMutex());
+					lastKfPose = currPose = graph.nodes.at(id);
+				}
+			}
+			rec.kfNode = lastKf;
+			const mrpt::poses::CPose3D T_kf_scan = currPose - lastKfPose;
+			rec.T_kf_scan = T_kf_scan.asTPose();
+			rec.onlinePose = currPose.asTPose();
+			// Exactly the identity on a keyframe: composing a rotation with its own inverse would
+			// feed rounding back into every following scan.
+			T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : T_kf_scan;
+			rec.ms.total = msSince(tScan) + readMs;
+			rec.rssMb = static_cast<float>(currentRssMb());
+			res.scans.push_back(rec);
+			if (opts.onScan)
+				opts.onScan(res.scans.back(), source.progress());
 		}
-		rec.kfNode = lastKf;
-		const mrpt::poses::CPose3D T_kf_scan = currPose - lastKfPose;
-		rec.T_kf_scan = T_kf_scan.asTPose();
-		rec.onlinePose = currPose.asTPose();
-		// Exactly the identity on a keyframe: composing a rotation with its own inverse would
-		// feed rounding back into every following scan.
-		T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : T_kf_scan;
-		rec.ms.total = msSince(tScan) + readMs;
-		rec.rssMb = static_cast<float>(currentRssMb());
-		res.scans.push_back(rec);
-		if (opts.onScan) opts.onScan(res.scans.back(), source.progress());
-	}
 	}
 	catch (const std::exception& e)
 	{
 		// A plugin or the input failed on one scan: what came before is kept and written.
 		std::string what = e.what();
-		if (const auto pos = what.find("Call stack"); pos != std::string::npos) what.resize(pos);
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos)
+			what.resize(pos);
 		res.error = source.name() + ": scan #" + std::to_string(currentIndex) + ": " + what;
 	}
 	res.stopReason = source.stopReason();
@@ -668,29 +727,32 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	}
 	catch (const std::exception& e)
 	{
-		if (res.error.empty()) res.error = std::string("finishing the map: ") + e.what();
+		if (res.error.empty())
+			res.error = std::string("finishing the map: ") + e.what();
 	}
-	if (res.error.empty() && !backend.error().empty()) res.error = "mapping or loop closing: " + backend.error();
+	if (res.error.empty() && !backend.error().empty())
+		res.error = "mapping or loop closing: " + backend.error();
 	for (const auto& [record, t] : backend.timings())
 		if (record < res.scans.size())
 		{
 			res.scans[record].ms.mapping += t.mapping;
 			res.scans[record].ms.loop += t.loop;
 		}
-	if (loopDetector_) res.loopDecisions = loopDetector_->decisions();
+	if (loopDetector_)
+		res.loopDecisions = loopDetector_->decisions();
 	res.cpuBackend_s = backend.cpuSeconds();
 	res.memoryTrim_ms = backend.trimMs();
 	res.cpuTracking_s = detail::threadCpuSeconds() - cpu0;
 
 	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))
 	{
-		MRPT_LOG_INFO_STREAM(
-			"optimizing the pose graph: " << graph.nodes.size() << " nodes, " << graph.edges.size()
-										  << " edges");
+		MRPT_LOG_INFO_STREAM("optimizing the pose graph: " << graph.nodes.size() << " nodes, "
+		                                                   << graph.edges.size() << " edges");
 		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges, backend.fixedNodes());
 	}
 	res.poses.reserve(res.scans.size());
-	for (const auto& r : res.scans) res.poses.push_back(graph.nodes.at(r.kfNode) + mrpt::poses::CPose3D(r.T_kf_scan));
+	for (const auto& r : res.scans)
+		res.poses.push_back(graph.nodes.at(r.kfNode) + mrpt::poses::CPose3D(r.T_kf_scan));
 	res.wall_s = std::chrono::duration<double>(Clock::now() - wall0).count();
 	return res;
 }

@@ -21,10 +21,12 @@ const char* rasterslam::toString(TrackingStatus s)
 {
 	switch (s)
 	{
-		case TrackingStatus::Initializing: return "init";
-		case TrackingStatus::Ok: return "ok";
-		case TrackingStatus::Lost: return "lost";
+		case TrackingStatus::Initializing:
+			return "init";
+		case TrackingStatus::Ok:
+			return "ok";
+		case TrackingStatus::Lost:
+			return "lost";
 	}
 	return "?";
 }
-

@@ -28,18 +28,19 @@ std::string exeDir()
 std::set<std::string> registeredNames()
 {
 	std::set<std::string> s;
-	for (const auto* c : mrpt::rtti::getAllRegisteredClasses()) s.insert(c->className);
+	for (const auto* c : mrpt::rtti::getAllRegisteredClasses())
+		s.insert(c->className);
 	return s;
 }
 
 const std::vector<std::pair<const mrpt::rtti::TRuntimeClassId*, std::string>>& roles()
 {
 	static const std::vector<std::pair<const mrpt::rtti::TRuntimeClassId*, std::string>> r = {
-		{CLASS_ID(Rasterizer), "rasterizer"},
-		{CLASS_ID(Odometry), "odometry"},
-		{CLASS_ID(MapManager), "map_manager"},
-		{CLASS_ID(LoopDetector), "loop_detector"},
-		{CLASS_ID(Optimizer), "optimizer"}};
+	    {CLASS_ID(Rasterizer), "rasterizer"},
+	    {CLASS_ID(Odometry), "odometry"},
+	    {CLASS_ID(MapManager), "map_manager"},
+	    {CLASS_ID(LoopDetector), "loop_detector"},
+	    {CLASS_ID(Optimizer), "optimizer"}};
 	return r;
 }
 }  // namespace
@@ -47,7 +48,8 @@ const std::vector<std::pair<const mrpt::rtti::TRuntimeClassId*, std::string>>& r
 std::string roleOfClass(const mrpt::rtti::TRuntimeClassId* id)
 {
 	for (const auto& [rid, name] : roles())
-		if (id != rid && id->derivedFrom(rid)) return name;
+		if (id != rid && id->derivedFrom(rid))
+			return name;
 	return {};
 }
 
@@ -65,10 +67,12 @@ std::vector<std::string> PluginLoader::searchPath() const
 		std::stringstream ss(env);
 		std::string d;
 		while (std::getline(ss, d, ':'))
-			if (!d.empty()) dirs.push_back(d);
+			if (!d.empty())
+				dirs.push_back(d);
 	}
 	const auto exe = exeDir();
-	if (!exe.empty()) dirs.push_back(exe + "/../" RASTERSLAM_PLUGIN_SUBDIR);
+	if (!exe.empty())
+		dirs.push_back(exe + "/../" RASTERSLAM_PLUGIN_SUBDIR);
 	dirs.push_back(RASTERSLAM_BUILD_PLUGIN_DIR);
 	dirs.push_back(RASTERSLAM_INSTALL_PLUGIN_DIR);
 	// Remove duplicates (same folder reached by two routes), keeping the first.
@@ -78,7 +82,8 @@ std::vector<std::string> PluginLoader::searchPath() const
 	{
 		std::error_code ec;
 		const auto canon = fs::weakly_canonical(d, ec).string();
-		if (seen.insert(ec ? d : canon).second) out.push_back(ec ? d : canon);
+		if (seen.insert(ec ? d : canon).second)
+			out.push_back(ec ? d : canon);
 	}
 	return out;
 }
@@ -87,7 +92,8 @@ void PluginLoader::loadModule(const std::string& path)
 {
 	const std::string abs = fs::absolute(path).lexically_normal().string();
 	for (const auto& l : loaded_)
-		if (fs::path(l).filename() == fs::path(abs).filename()) return;  // already loaded
+		if (fs::path(l).filename() == fs::path(abs).filename())
+			return;  // already loaded
 	const auto before = registeredNames();
 	std::string err;
 	if (!mrpt::system::loadPluginModule(abs, err))
@@ -95,7 +101,8 @@ void PluginLoader::loadModule(const std::string& path)
 	mrpt::rtti::registerAllPendingClasses();
 	loaded_.push_back(abs);
 	for (const auto& n : registeredNames())
-		if (!before.count(n)) classModule_[n] = abs;
+		if (!before.count(n))
+			classModule_[n] = abs;
 }
 
 void PluginLoader::load(const std::vector<std::string>& only)
@@ -107,7 +114,8 @@ void PluginLoader::load(const std::vector<std::string>& only)
 		for (const auto& d : dirs)
 		{
 			std::error_code ec;
-			if (!fs::is_directory(d, ec)) continue;
+			if (!fs::is_directory(d, ec))
+				continue;
 			std::vector<fs::path> files;
 			for (const auto& e : fs::directory_iterator(d, ec))
 			{
@@ -118,7 +126,8 @@ void PluginLoader::load(const std::vector<std::string>& only)
 			std::sort(files.begin(), files.end());  // deterministic load order
 			for (const auto& f : files)
 			{
-				if (!seenNames.insert(f.filename().string()).second) continue;
+				if (!seenNames.insert(f.filename().string()).second)
+					continue;
 				// One broken module found on the path must not stop every run: it is
 				// reported, and a config naming one of its classes fails with that report.
 				try
@@ -160,10 +169,11 @@ void PluginLoader::load(const std::vector<std::string>& only)
 		if (!found)
 		{
 			std::string where;
-			for (const auto& d : dirs) where += "\n  " + d;
-			throw std::runtime_error(
-				"plugin module '" + name + "' not found in the plugin search path:" + where +
-				"\n(set RASTERSLAM_PLUGIN_PATH to add folders)");
+			for (const auto& d : dirs)
+				where += "\n  " + d;
+			throw std::runtime_error("plugin module '" + name +
+			                         "' not found in the plugin search path:" + where +
+			                         "\n(set RASTERSLAM_PLUGIN_PATH to add folders)");
 		}
 	}
 }
@@ -173,41 +183,46 @@ std::vector<PluginClassInfo> PluginLoader::registeredClasses() const
 	std::vector<PluginClassInfo> out;
 	for (const auto* c : mrpt::rtti::getAllRegisteredClasses())
 	{
-		if (!c->ptrCreateObject) continue;  // abstract
+		if (!c->ptrCreateObject)
+			continue;  // abstract
 		const auto role = roleOfClass(c);
-		if (role.empty()) continue;
+		if (role.empty())
+			continue;
 		const auto it = classModule_.find(c->className);
 		out.push_back({c->className, role, it == classModule_.end() ? "" : it->second});
 	}
-	std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
-		return a.role != b.role ? a.role < b.role : a.className < b.className;
-	});
+	std::sort(out.begin(), out.end(),
+	          [](const auto& a, const auto& b)
+	          { return a.role != b.role ? a.role < b.role : a.className < b.className; });
 	return out;
 }
 
-Plugin::Ptr PluginLoader::create(
-	const std::string& className, const mrpt::rtti::TRuntimeClassId* role) const
+Plugin::Ptr PluginLoader::create(const std::string& className,
+                                 const mrpt::rtti::TRuntimeClassId* role) const
 {
 	std::string roleName = role->className;
 	for (const auto& [rid, name] : roles())
-		if (rid == role) roleName = name;
+		if (rid == role)
+			roleName = name;
 	std::string known;
 	for (const auto& c : registeredClasses())
-		if (c.role == roleName) known += "\n  " + c.className;
-	if (known.empty()) known = " (none: were the plugins built, and found in the search path?)";
-	for (const auto& f : failed_) known += "\n(not loaded: " + f + ")";
+		if (c.role == roleName)
+			known += "\n  " + c.className;
+	if (known.empty())
+		known = " (none: were the plugins built, and found in the search path?)";
+	for (const auto& f : failed_)
+		known += "\n(not loaded: " + f + ")";
 
 	const auto* id = mrpt::rtti::findRegisteredClass(className, false);
 	if (!id || !id->ptrCreateObject)
-		throw std::runtime_error(
-			"unknown " + roleName + " plugin class '" + className + "'; registered " + roleName +
-			" classes:" + known);
+		throw std::runtime_error("unknown " + roleName + " plugin class '" + className +
+		                         "'; registered " + roleName + " classes:" + known);
 	if (!id->derivedFrom(role))
-		throw std::runtime_error(
-			"class '" + className + "' is not a " + roleName + " plugin; registered " +
-			roleName + " classes:" + known);
+		throw std::runtime_error("class '" + className + "' is not a " + roleName +
+		                         " plugin; registered " + roleName + " classes:" + known);
 	auto obj = std::dynamic_pointer_cast<Plugin>(id->createObject());
-	if (!obj) throw std::runtime_error("class '" + className + "' could not be created");
+	if (!obj)
+		throw std::runtime_error("class '" + className + "' could not be created");
 	return obj;
 }
 

@@ -138,8 +138,8 @@ Association associate(const Trajectory& gt, const Trajectory& est, bool byIndex,
 	return a;
 }
 
-AteResult computeAte(
-	const Trajectory& gt, const Trajectory& est, const Association& a, const std::optional<Eigen::Isometry3d>& fixed)
+AteResult computeAte(const Trajectory& gt, const Trajectory& est, const Association& a,
+                     const std::optional<Eigen::Isometry3d>& fixed)
 {
 	checkAssociation(gt, est, a);
 	AteResult r;

@@ -6,20 +6,23 @@
 
 namespace rasterslam::features
 {
-std::vector<Match> matchMutual(
-	const cv::Mat& descA, const cv::Mat& descB, const MatchParams& p,
-	const std::vector<Eigen::Vector3f>* posA, const std::vector<Eigen::Vector3f>* posB)
+std::vector<Match> matchMutual(const cv::Mat& descA, const cv::Mat& descB, const MatchParams& p,
+                               const std::vector<Eigen::Vector3f>* posA,
+                               const std::vector<Eigen::Vector3f>* posB)
 {
 	const int na = descA.rows, nb = descB.rows;
 	std::vector<Match> out;
-	if (na == 0 || nb == 0) return out;
-	CV_Assert(descA.cols == 32 && descB.cols == 32 && descA.type() == CV_8U && descB.type() == CV_8U);
+	if (na == 0 || nb == 0)
+		return out;
+	CV_Assert(descA.cols == 32 && descB.cols == 32 && descA.type() == CV_8U &&
+	          descB.type() == CV_8U);
 	const bool gated = posA && posB && p.gateRadius_m > 0;
 	const float gate2 = p.gateRadius_m * p.gateRadius_m;
 	constexpr int kInf = std::numeric_limits<int>::max();
 	std::vector<int> bestA(na, -1), distA(na, kInf), secondA(na, kInf);
 	std::vector<int> bestB(nb, -1), distB(nb, kInf);
-	auto consider = [&](int i, int j) {
+	auto consider = [&](int i, int j)
+	{
 		const int d = hamming32(descA.ptr<uint8_t>(i), descB.ptr<uint8_t>(j));
 		if (d < distA[i])
 		{
@@ -38,17 +41,21 @@ std::vector<Match> matchMutual(
 	if (!gated)
 	{
 		for (int i = 0; i < na; i++)
-			for (int j = 0; j < nb; j++) consider(i, j);
+			for (int j = 0; j < nb; j++)
+				consider(i, j);
 	}
 	else
 	{
 		// Bucket B by (x, y) into cells one gate wide: a gated pair lies in neighbouring cells.
 		const float cell = p.gateRadius_m;
-		auto key = [&](float x, float y) {
-			return std::make_pair(static_cast<int>(std::floor(x / cell)), static_cast<int>(std::floor(y / cell)));
+		auto key = [&](float x, float y)
+		{
+			return std::make_pair(static_cast<int>(std::floor(x / cell)),
+			                      static_cast<int>(std::floor(y / cell)));
 		};
 		std::map<std::pair<int, int>, std::vector<int>> grid;
-		for (int j = 0; j < nb; j++) grid[key((*posB)[j].x(), (*posB)[j].y())].push_back(j);
+		for (int j = 0; j < nb; j++)
+			grid[key((*posB)[j].x(), (*posB)[j].y())].push_back(j);
 		for (int i = 0; i < na; i++)
 		{
 			const auto [cx, cy] = key((*posA)[i].x(), (*posA)[i].y());
@@ -56,17 +63,21 @@ std::vector<Match> matchMutual(
 				for (int dy = -1; dy <= 1; dy++)
 				{
 					const auto it = grid.find({cx + dx, cy + dy});
-					if (it == grid.end()) continue;
+					if (it == grid.end())
+						continue;
 					for (int j : it->second)
-						if (((*posA)[i] - (*posB)[j]).squaredNorm() <= gate2) consider(i, j);
+						if (((*posA)[i] - (*posB)[j]).squaredNorm() <= gate2)
+							consider(i, j);
 				}
 		}
 	}
 	for (int i = 0; i < na; i++)
 	{
 		const int j = bestA[i];
-		if (j < 0 || bestB[j] != i || distA[i] > p.maxDistance) continue;
-		if (p.ratio < 1.0f && secondA[i] != kInf && distA[i] >= p.ratio * secondA[i]) continue;
+		if (j < 0 || bestB[j] != i || distA[i] > p.maxDistance)
+			continue;
+		if (p.ratio < 1.0f && secondA[i] != kInf && distA[i] >= p.ratio * secondA[i])
+			continue;
 		out.push_back({i, j, distA[i]});
 	}
 	return out;

@@ -6,15 +6,15 @@ namespace rasterslam::features
 {
 OrbExtractor::OrbExtractor(const OrbParams& p) : p_(p)
 {
-	orb_ = cv::ORB::create(
-		p_.numFeatures * 3, p_.scaleFactor, p_.levels, p_.edgeThreshold, 0, 2,
-		cv::ORB::HARRIS_SCORE, p_.patchSize, p_.fastThreshold);
+	orb_ = cv::ORB::create(p_.numFeatures * 3, p_.scaleFactor, p_.levels, p_.edgeThreshold, 0, 2,
+	                       cv::ORB::HARRIS_SCORE, p_.patchSize, p_.fastThreshold);
 }
 
-std::vector<cv::KeyPoint> distributeOverGrid(
-	const std::vector<cv::KeyPoint>& kps, int width, int height, int cols, int rows, int n)
+std::vector<cv::KeyPoint> distributeOverGrid(const std::vector<cv::KeyPoint>& kps, int width,
+                                             int height, int cols, int rows, int n)
 {
-	if (static_cast<int>(kps.size()) <= n) return kps;
+	if (static_cast<int>(kps.size()) <= n)
+		return kps;
 	const int cells = cols * rows;
 	std::vector<std::vector<int>> byCell(cells);
 	for (int i = 0; i < static_cast<int>(kps.size()); i++)
@@ -23,9 +23,8 @@ std::vector<cv::KeyPoint> distributeOverGrid(
 		const int r = std::clamp(static_cast<int>(kps[i].pt.y * rows / height), 0, rows - 1);
 		byCell[r * cols + c].push_back(i);
 	}
-	auto stronger = [&](int a, int b) {
-		return kps[a].response != kps[b].response ? kps[a].response > kps[b].response : a < b;
-	};
+	auto stronger = [&](int a, int b)
+	{ return kps[a].response != kps[b].response ? kps[a].response > kps[b].response : a < b; };
 	const int share = std::max(1, n / cells);
 	std::vector<char> taken(kps.size(), 0);
 	std::vector<cv::KeyPoint> out;
@@ -43,18 +42,21 @@ std::vector<cv::KeyPoint> distributeOverGrid(
 	{
 		std::vector<int> rest;
 		for (int i = 0; i < static_cast<int>(kps.size()); i++)
-			if (!taken[i]) rest.push_back(i);
+			if (!taken[i])
+				rest.push_back(i);
 		std::sort(rest.begin(), rest.end(), stronger);
 		for (int i : rest)
 		{
-			if (static_cast<int>(out.size()) >= n) break;
+			if (static_cast<int>(out.size()) >= n)
+				break;
 			out.push_back(kps[i]);
 		}
 	}
 	return out;
 }
 
-void OrbExtractor::extract(const cv::Mat& image, std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors)
+void OrbExtractor::extract(const cv::Mat& image, std::vector<cv::KeyPoint>& keypoints,
+                           cv::Mat& descriptors)
 {
 	int thr = p_.fastThreshold;
 	std::vector<cv::KeyPoint> kps;
@@ -63,11 +65,13 @@ void OrbExtractor::extract(const cv::Mat& image, std::vector<cv::KeyPoint>& keyp
 		orb_->setFastThreshold(thr);
 		kps.clear();
 		orb_->detect(image, kps);
-		if (static_cast<int>(kps.size()) >= p_.numFeatures || thr <= p_.minFastThreshold) break;
+		if (static_cast<int>(kps.size()) >= p_.numFeatures || thr <= p_.minFastThreshold)
+			break;
 		thr = std::max(p_.minFastThreshold, thr / 2);
 	}
 	lastThreshold_ = thr;
-	keypoints = distributeOverGrid(kps, image.cols, image.rows, p_.gridCols, p_.gridRows, p_.numFeatures);
+	keypoints =
+	    distributeOverGrid(kps, image.cols, image.rows, p_.gridCols, p_.gridRows, p_.numFeatures);
 	orb_->compute(image, keypoints, descriptors);
 }
 

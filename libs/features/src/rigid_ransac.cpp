@@ -8,11 +8,11 @@
 
 namespace rasterslam::features
 {
-bool fitRigid(
-	const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
-	const std::vector<int>& idx, Eigen::Isometry3d& T)
+bool fitRigid(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
+              const std::vector<int>& idx, Eigen::Isometry3d& T)
 {
-	if (idx.size() < 3) return false;
+	if (idx.size() < 3)
+		return false;
 	// MRPT's closed form (Horn): "this" = T (+) "other".
 	std::vector<mrpt::math::TPoint3D> thisPts, otherPts;
 	thisPts.reserve(idx.size());
@@ -24,18 +24,20 @@ bool fitRigid(
 	}
 	mrpt::poses::CPose3DQuat pq;
 	double scale = 1;
-	if (!mrpt::tfest::se3_l2(thisPts, otherPts, pq, scale, true)) return false;
+	if (!mrpt::tfest::se3_l2(thisPts, otherPts, pq, scale, true))
+		return false;
 	const auto M = mrpt::poses::CPose3D(pq).getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
 	for (int r = 0; r < 4; r++)
-		for (int c = 0; c < 4; c++) T.matrix()(r, c) = M(r, c);
+		for (int c = 0; c < 4; c++)
+			T.matrix()(r, c) = M(r, c);
 	return T.matrix().allFinite();
 }
 
 namespace
 {
-std::vector<int> selectInliers(
-	const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
-	const Eigen::Isometry3d& T, double thr, double* sse = nullptr)
+std::vector<int> selectInliers(const std::vector<Eigen::Vector3f>& p,
+                               const std::vector<Eigen::Vector3f>& q, const Eigen::Isometry3d& T,
+                               double thr, double* sse = nullptr)
 {
 	const Eigen::Matrix3f R = T.linear().cast<float>();
 	const Eigen::Vector3f t = T.translation().cast<float>();
@@ -51,18 +53,20 @@ std::vector<int> selectInliers(
 			s += e2;
 		}
 	}
-	if (sse) *sse = s;
+	if (sse)
+		*sse = s;
 	return in;
 }
 }  // namespace
 
-RigidResult ransacRigid(
-	const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
-	const RansacParams& prm, uint32_t seed)
+RigidResult ransacRigid(const std::vector<Eigen::Vector3f>& p,
+                        const std::vector<Eigen::Vector3f>& q, const RansacParams& prm,
+                        uint32_t seed)
 {
 	RigidResult best;
 	const int n = static_cast<int>(p.size());
-	if (n < 3 || static_cast<int>(q.size()) != n) return best;
+	if (n < 3 || static_cast<int>(q.size()) != n)
+		return best;
 	std::mt19937 rng(seed);
 	std::uniform_int_distribution<int> pick(0, n - 1);
 	int needed = prm.maxIterations;
@@ -70,18 +74,21 @@ RigidResult ransacRigid(
 	{
 		best.iterations = it + 1;
 		const int a = pick(rng), b = pick(rng), c = pick(rng);
-		if (a == b || b == c || a == c) continue;
+		if (a == b || b == c || a == c)
+			continue;
 		// Skip near-collinear samples: they leave a rotation about their line undetermined.
 		const float area = (p[b] - p[a]).cross(p[c] - p[a]).norm();
-		if (area < 0.5f) continue;
+		if (area < 0.5f)
+			continue;
 		// Matched pairs must keep their distances under a rigid motion.
 		const float thr = static_cast<float>(2 * prm.inlierThreshold_m);
 		if (std::abs((p[b] - p[a]).norm() - (q[b] - q[a]).norm()) > thr ||
-			std::abs((p[c] - p[a]).norm() - (q[c] - q[a]).norm()) > thr ||
-			std::abs((p[c] - p[b]).norm() - (q[c] - q[b]).norm()) > thr)
+		    std::abs((p[c] - p[a]).norm() - (q[c] - q[a]).norm()) > thr ||
+		    std::abs((p[c] - p[b]).norm() - (q[c] - q[b]).norm()) > thr)
 			continue;
 		Eigen::Isometry3d T;
-		if (!fitRigid(p, q, {a, b, c}, T)) continue;
+		if (!fitRigid(p, q, {a, b, c}, T))
+			continue;
 		auto in = selectInliers(p, q, T, prm.inlierThreshold_m);
 		if (in.size() > best.inliers.size())
 		{
@@ -91,19 +98,23 @@ RigidResult ransacRigid(
 			const double w = static_cast<double>(best.inliers.size()) / n;
 			const double w3 = w * w * w;
 			if (w3 > 1e-9 && w3 < 1.0)
-				needed = static_cast<int>(std::ceil(std::log(1 - prm.confidence) / std::log(1 - w3)));
+				needed =
+				    static_cast<int>(std::ceil(std::log(1 - prm.confidence) / std::log(1 - w3)));
 			else if (w3 >= 1.0)
 				needed = 0;
 		}
 	}
-	if (static_cast<int>(best.inliers.size()) < std::max(3, prm.minInliers)) return best;
+	if (static_cast<int>(best.inliers.size()) < std::max(3, prm.minInliers))
+		return best;
 	double sse = 0;
 	for (int r = 0; r < prm.refinements; r++)
 	{
 		Eigen::Isometry3d T;
-		if (!fitRigid(p, q, best.inliers, T)) break;
+		if (!fitRigid(p, q, best.inliers, T))
+			break;
 		auto in = selectInliers(p, q, T, prm.inlierThreshold_m, &sse);
-		if (in.size() < 3) break;
+		if (in.size() < 3)
+			break;
 		best.T = T;
 		best.inliers = std::move(in);
 	}
@@ -113,8 +124,8 @@ RigidResult ransacRigid(
 	return best;
 }
 
-Eigen::Matrix<double, 6, 6> pointToPointInformation(
-	const std::vector<Eigen::Vector3f>& pts, const std::vector<int>& idx, double sigma_m)
+Eigen::Matrix<double, 6, 6> pointToPointInformation(const std::vector<Eigen::Vector3f>& pts,
+                                                    const std::vector<int>& idx, double sigma_m)
 {
 	// Residual r = R p + t - q; d r / d(t, w) = [I, -[p]x] with w a small rotation vector
 	// (roll about x, pitch about y, yaw about z).
@@ -132,7 +143,8 @@ Eigen::Matrix<double, 6, 6> pointToPointInformation(
 	const int perm[6] = {0, 1, 2, 5, 4, 3};
 	Eigen::Matrix<double, 6, 6> I;
 	for (int r = 0; r < 6; r++)
-		for (int c = 0; c < 6; c++) I(r, c) = H(perm[r], perm[c]);
+		for (int c = 0; c < 6; c++)
+			I(r, c) = H(perm[r], perm[c]);
 	return I;
 }
 

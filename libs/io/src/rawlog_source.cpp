@@ -5,15 +5,15 @@
 #include <mrpt/obs/CActionCollection.h>
 #include <mrpt/obs/CActionRobotMovement2D.h>
 #include <mrpt/obs/CActionRobotMovement3D.h>
-#include <mrpt/obs/CObservationOdometry.h>
-#include <mrpt/poses/CPosePDFGaussian.h>
 #include <mrpt/obs/CObservation3DRangeScan.h>
+#include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/obs/registerAllClasses.h>
+#include <mrpt/poses/CPosePDFGaussian.h>
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/io/rawlog_source.h>
 
@@ -59,7 +59,8 @@ class CountingStream : public mrpt::io::CStream
 void registerClassesOnce()
 {
 	// Debian links with --as-needed: without these calls the classes are not registered.
-	static const bool done = [] {
+	static const bool done = []
+	{
 		mrpt::obs::registerAllClasses_mrpt_obs();
 		mrpt::maps::registerAllClasses_mrpt_maps();
 		return true;
@@ -71,20 +72,21 @@ std::vector<double> defaultElevations(int rows)
 {
 	std::vector<double> e(rows);
 	double lo = 0, hi = 0;
-	if (rows == 16) lo = -15, hi = 15;
+	if (rows == 16)
+		lo = -15, hi = 15;
 	else if (rows == 32)
 		lo = -30.67, hi = 10.67;
 	else if (rows == 64)
 		lo = -24.8, hi = 2.0;
 	else
 		return {};
-	for (int i = 0; i < rows; i++) e[i] = lo + (hi - lo) * i / (rows - 1);
+	for (int i = 0; i < rows; i++)
+		e[i] = lo + (hi - lo) * i / (rows - 1);
 	return e;
 }
 
-void appendTransformed(
-	std::vector<PointXYZI>& out, const mrpt::poses::CPose3D& sensorPose, float x, float y, float z,
-	float i)
+void appendTransformed(std::vector<PointXYZI>& out, const mrpt::poses::CPose3D& sensorPose, float x,
+                       float y, float z, float i)
 {
 	double gx, gy, gz;
 	sensorPose.composePoint(x, y, z, gx, gy, gz);
@@ -92,25 +94,24 @@ void appendTransformed(
 }
 }  // namespace
 
-bool observationToPoints(
-	const mrpt::obs::CObservation& o, std::vector<PointXYZI>& out, const RawlogSourceOptions& opts,
-	const std::string& source)
+bool observationToPoints(const mrpt::obs::CObservation& o, std::vector<PointXYZI>& out,
+                         const RawlogSourceOptions& opts, const std::string& source)
 {
 	using namespace mrpt::obs;
 	out.clear();
 	if (const auto* pc = dynamic_cast<const CObservationPointCloud*>(&o))
 	{
 		if (pc->isExternallyStored() && !std::filesystem::exists(pc->getExternalStorageFile()))
-			throw std::runtime_error(
-				source + ": point cloud '" + pc->sensorLabel + "' refers to external file '" +
-				pc->getExternalStorageFile() + "', which does not exist");
-		pc->load();	 // no-op unless externally stored
+			throw std::runtime_error(source + ": point cloud '" + pc->sensorLabel +
+			                         "' refers to external file '" + pc->getExternalStorageFile() +
+			                         "', which does not exist");
+		pc->load();  // no-op unless externally stored
 		if (!pc->pointcloud)
 		{
 			if (pc->isExternallyStored())
 				throw std::runtime_error(
-					source + ": point cloud '" + pc->sensorLabel + "' refers to external file '" +
-					pc->getExternalStorageFile() + "', which could not be loaded");
+				    source + ": point cloud '" + pc->sensorLabel + "' refers to external file '" +
+				    pc->getExternalStorageFile() + "', which could not be loaded");
 			return true;  // an empty cloud: the engine reports it
 		}
 		const auto& m = *pc->pointcloud;
@@ -127,11 +128,13 @@ bool observationToPoints(
 		for (size_t k = 0; k < xs.size(); k++)
 		{
 			const float in = xyzi ? xyzi->getPointIntensity_fast(k) : 0.f;
-			if (identity) out.push_back({xs[k], ys[k], zs[k], in});
+			if (identity)
+				out.push_back({xs[k], ys[k], zs[k], in});
 			else
 				appendTransformed(out, pc->sensorPose, xs[k], ys[k], zs[k], in);
 		}
-		if (pc->isExternallyStored()) pc->unload();	 // keep memory flat
+		if (pc->isExternallyStored())
+			pc->unload();  // keep memory flat
 		return true;
 	}
 	if (const auto* vs = dynamic_cast<const CObservationVelodyneScan*>(&o))
@@ -147,22 +150,22 @@ bool observationToPoints(
 		const auto& pcl = src->point_cloud;
 		out.reserve(pcl.x.size());
 		for (size_t k = 0; k < pcl.x.size(); k++)
-			appendTransformed(
-				out, vs->sensorPose, pcl.x[k], pcl.y[k], pcl.z[k], pcl.intensity[k] / 255.f);
+			appendTransformed(out, vs->sensorPose, pcl.x[k], pcl.y[k], pcl.z[k],
+			                  pcl.intensity[k] / 255.f);
 		return true;
 	}
 	if (const auto* rs = dynamic_cast<const CObservationRotatingScan*>(&o))
 	{
 		std::vector<double> elev = opts.rotatingScanElevationsDeg;
-		if (elev.empty()) elev = defaultElevations(rs->rowCount);
+		if (elev.empty())
+			elev = defaultElevations(rs->rowCount);
 		if (elev.size() != rs->rowCount)
-			throw std::runtime_error(
-				source + ": CObservationRotatingScan '" + rs->sensorLabel + "' has " +
-				std::to_string(rs->rowCount) +
-				" rows; no beam elevation table for that count (give one with "
-				"rotatingScanElevationsDeg)");
+			throw std::runtime_error(source + ": CObservationRotatingScan '" + rs->sensorLabel +
+			                         "' has " + std::to_string(rs->rowCount) +
+			                         " rows; no beam elevation table for that count (give one with "
+			                         "rotatingScanElevationsDeg)");
 		const bool hasI = rs->intensityImage.rows() == rs->rowCount &&
-			rs->intensityImage.cols() == rs->columnCount;
+		                  rs->intensityImage.cols() == rs->columnCount;
 		const double dAz = rs->columnCount > 1 ? rs->azimuthSpan / (rs->columnCount - 1) : 0.0;
 		for (int r = 0; r < rs->rowCount; r++)
 		{
@@ -170,13 +173,14 @@ bool observationToPoints(
 			for (int c = 0; c < rs->columnCount; c++)
 			{
 				const auto raw = rs->rangeImage(r, c);
-				if (raw == 0) continue;	 // no return
+				if (raw == 0)
+					continue;  // no return
 				const double range = raw * rs->rangeResolution;
 				const double az = rs->startAzimuth + c * dAz;
 				appendTransformed(
-					out, rs->sensorPose, static_cast<float>(range * ce * std::cos(az)),
-					static_cast<float>(range * ce * std::sin(az)), static_cast<float>(range * se),
-					hasI ? rs->intensityImage(r, c) / 255.f : 0.f);
+				    out, rs->sensorPose, static_cast<float>(range * ce * std::cos(az)),
+				    static_cast<float>(range * ce * std::sin(az)), static_cast<float>(range * se),
+				    hasI ? rs->intensityImage(r, c) / 255.f : 0.f);
 			}
 		}
 		return true;
@@ -188,9 +192,8 @@ bool observationToPoints(
 		if (r3->hasPoints3D)
 		{
 			for (size_t k = 0; k < r3->points3D_x.size(); k++)
-				appendTransformed(
-					out, r3->sensorPose, r3->points3D_x[k], r3->points3D_y[k], r3->points3D_z[k],
-					0.f);
+				appendTransformed(out, r3->sensorPose, r3->points3D_x[k], r3->points3D_y[k],
+				                  r3->points3D_z[k], 0.f);
 		}
 		else if (r3->hasRangeImage)
 		{
@@ -200,7 +203,8 @@ bool observationToPoints(
 			const auto& xs = m.getPointsBufferRef_x();
 			const auto& ys = m.getPointsBufferRef_y();
 			const auto& zs = m.getPointsBufferRef_z();
-			for (size_t k = 0; k < xs.size(); k++) out.push_back({xs[k], ys[k], zs[k], 0.f});
+			for (size_t k = 0; k < xs.size(); k++)
+				out.push_back({xs[k], ys[k], zs[k], 0.f});
 		}
 		r3->unload();
 		return true;
@@ -224,17 +228,19 @@ std::optional<uint32_t> gzipTrailerSize(const std::string& path, uint64_t size)
 {
 	std::ifstream f(path, std::ios::binary);
 	unsigned char magic[2] = {0, 0};
-	if (size < 18 || !f.read(reinterpret_cast<char*>(magic), 2) || magic[0] != 0x1f || magic[1] != 0x8b)
+	if (size < 18 || !f.read(reinterpret_cast<char*>(magic), 2) || magic[0] != 0x1f ||
+	    magic[1] != 0x8b)
 		return std::nullopt;
 	unsigned char t[4];
 	f.seekg(static_cast<std::streamoff>(size - 4));
-	if (!f.read(reinterpret_cast<char*>(t), 4)) return std::nullopt;
+	if (!f.read(reinterpret_cast<char*>(t), 4))
+		return std::nullopt;
 	return uint32_t(t[0]) | uint32_t(t[1]) << 8 | uint32_t(t[2]) << 16 | uint32_t(t[3]) << 24;
 }
 }  // namespace
 
 RawlogSource::RawlogSource(const std::string& path, RawlogSourceOptions opts)
-	: impl_(std::make_unique<Impl>()), path_(path), opts_(std::move(opts))
+    : impl_(std::make_unique<Impl>()), path_(path), opts_(std::move(opts))
 {
 	registerClassesOnce();
 	std::error_code ec;
@@ -260,9 +266,11 @@ double RawlogSource::progress() const
 	if (impl_->gzipIsize)
 	{
 		total = *impl_->gzipIsize;
-		while (total < impl_->fileSize || total < done) total += (uint64_t(1) << 32);
+		while (total < impl_->fileSize || total < done)
+			total += (uint64_t(1) << 32);
 	}
-	if (total == 0) return -1;
+	if (total == 0)
+		return -1;
 	return std::min(1.0, static_cast<double>(done) / static_cast<double>(total));
 }
 
@@ -274,12 +282,14 @@ void RawlogSource::attachGroundTruth(int64_t ticks, const mrpt::poses::CPose3D& 
 		return;
 	}
 	earlyGt_.emplace_back(ticks, pose);
-	if (earlyGt_.size() > 16) earlyGt_.pop_front();	 // only ever needed for the next scan
+	if (earlyGt_.size() > 16)
+		earlyGt_.pop_front();  // only ever needed for the next scan
 }
 
 void RawlogSource::addOdometryIncrement(const mrpt::poses::CPose3DPDFGaussian& inc)
 {
-	if (!pendingOdometry_) pendingOdometry_ = inc;
+	if (!pendingOdometry_)
+		pendingOdometry_ = inc;
 	else
 		*pendingOdometry_ += inc;  // composition with covariance propagation
 }
@@ -293,7 +303,8 @@ void RawlogSource::handleObservation(const mrpt::obs::CObservation& obs)
 		// Absolute 2D readings: the increment is the difference of successive ones.
 		if (lastOdometryReading_)
 		{
-			mrpt::poses::CPose3DPDFGaussian inc(mrpt::poses::CPose3D(od->odometry - *lastOdometryReading_));
+			mrpt::poses::CPose3DPDFGaussian inc(
+			    mrpt::poses::CPose3D(od->odometry - *lastOdometryReading_));
 			inc.cov.setZero();
 			addOdometryIncrement(inc);
 		}
@@ -305,9 +316,11 @@ void RawlogSource::handleObservation(const mrpt::obs::CObservation& obs)
 		attachGroundTruth(ticks, gt->pose.mean);
 		return;
 	}
-	if (!opts_.sensorLabel.empty() && obs.sensorLabel != opts_.sensorLabel) return;
+	if (!opts_.sensorLabel.empty() && obs.sensorLabel != opts_.sensorLabel)
+		return;
 	Scan s;
-	if (!observationToPoints(obs, s.points, opts_, path_)) return;
+	if (!observationToPoints(obs, s.points, opts_, path_))
+		return;
 	s.index = scans_++;
 	s.odometryIncrement = pendingOdometry_;
 	pendingOdometry_.reset();
@@ -320,7 +333,8 @@ void RawlogSource::handleObservation(const mrpt::obs::CObservation& obs)
 			earlyGt_.erase(it);
 			break;
 		}
-	if (pending_) ready_.push_back(std::move(*pending_));
+	if (pending_)
+		ready_.push_back(std::move(*pending_));
 	pending_ = std::move(s);
 	pendingTicks_ = ticks;
 }
@@ -336,9 +350,12 @@ bool RawlogSource::readOne()
 	}
 	catch (const mrpt::serialization::CExceptionEOF&)
 	{
-		if (impl_->counting->count() == before) return false;  // clean end between objects
-		stopReason_ = path_ + ": truncated: the file ends inside the object that starts at uncompressed byte " +
-			std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
+		if (impl_->counting->count() == before)
+			return false;  // clean end between objects
+		stopReason_ =
+		    path_ +
+		    ": truncated: the file ends inside the object that starts at uncompressed byte " +
+		    std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
 		return false;
 	}
 	catch (const std::exception& e)
@@ -346,20 +363,26 @@ bool RawlogSource::readOne()
 		// MRPT nests exceptions ("Original exception: ..."); the innermost message says most.
 		const std::string full = e.what();
 		std::string what = full;
-		for (auto pos = full.find("Message:"); pos != std::string::npos; pos = full.find("Message:", pos + 1))
+		for (auto pos = full.find("Message:"); pos != std::string::npos;
+		     pos = full.find("Message:", pos + 1))
 		{
 			const auto end = full.find('\n', pos);
-			what = full.substr(pos + 9, end == std::string::npos ? std::string::npos : end - pos - 9);
+			what =
+			    full.substr(pos + 9, end == std::string::npos ? std::string::npos : end - pos - 9);
 		}
 		if (objects_ == 0 && full.find("EOF") == std::string::npos)
 			throw std::runtime_error(
-				path_ + ": not an MRPT rawlog (the first object cannot be read): " + what);
-		if (full.find("EOF") != std::string::npos || full.find("Cannot read requested number") != std::string::npos)
-			stopReason_ = path_ + ": truncated: the file ends inside the object that starts at uncompressed byte " +
-				std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
+			    path_ + ": not an MRPT rawlog (the first object cannot be read): " + what);
+		if (full.find("EOF") != std::string::npos ||
+		    full.find("Cannot read requested number") != std::string::npos)
+			stopReason_ =
+			    path_ +
+			    ": truncated: the file ends inside the object that starts at uncompressed byte " +
+			    std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
 		else
-			stopReason_ = path_ + ": corrupt object at uncompressed byte " + std::to_string(before) + " (after " +
-				std::to_string(scans_) + " scans): " + what;
+			stopReason_ = path_ + ": corrupt object at uncompressed byte " +
+			              std::to_string(before) + " (after " + std::to_string(scans_) +
+			              " scans): " + what;
 		return false;
 	}
 	++objects_;
@@ -374,9 +397,10 @@ bool RawlogSource::readOne()
 		std::string what = e.what();
 		if (const auto pos = what.find("Message:"); pos != std::string::npos)
 			what = what.substr(pos + 9, what.find('\n', pos) - pos - 9);
-		if (const auto pos = what.find("Call stack"); pos != std::string::npos) what.resize(pos);
-		stopReason_ = what + " (object at uncompressed byte " + std::to_string(before) + ", after " +
-			std::to_string(scans_) + " scans)";
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos)
+			what.resize(pos);
+		stopReason_ = what + " (object at uncompressed byte " + std::to_string(before) +
+		              ", after " + std::to_string(scans_) + " scans)";
 		return false;
 	}
 	return true;
@@ -387,7 +411,8 @@ void RawlogSource::dispatch(const mrpt::serialization::CSerializable::Ptr& obj)
 	if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(obj))
 	{
 		for (const auto& o : *sf)
-			if (o) handleObservation(*o);
+			if (o)
+				handleObservation(*o);
 	}
 	else if (auto o = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
 		handleObservation(*o);
@@ -397,9 +422,11 @@ void RawlogSource::dispatch(const mrpt::serialization::CSerializable::Ptr& obj)
 		{
 			if (const auto* m3 = dynamic_cast<const mrpt::obs::CActionRobotMovement3D*>(a.get()))
 				addOdometryIncrement(m3->poseChange);
-			else if (const auto* m2 = dynamic_cast<const mrpt::obs::CActionRobotMovement2D*>(a.get()))
+			else if (const auto* m2 =
+			             dynamic_cast<const mrpt::obs::CActionRobotMovement2D*>(a.get()))
 			{
-				if (!m2->poseChange) continue;
+				if (!m2->poseChange)
+					continue;
 				mrpt::poses::CPosePDFGaussian g;
 				g.copyFrom(*m2->poseChange);
 				addOdometryIncrement(mrpt::poses::CPose3DPDFGaussian(g));
@@ -412,7 +439,8 @@ void RawlogSource::dispatch(const mrpt::serialization::CSerializable::Ptr& obj)
 std::optional<Scan> RawlogSource::next()
 {
 	while (ready_.empty() && !ended_)
-		if (!readOne()) ended_ = true;
+		if (!readOne())
+			ended_ = true;
 	if (!ready_.empty())
 	{
 		Scan s = std::move(ready_.front());

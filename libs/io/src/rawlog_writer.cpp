@@ -20,11 +20,11 @@ struct RawlogWriter::Impl
 };
 
 RawlogWriter::RawlogWriter(const std::string& path, int compressLevel)
-	: impl_(std::make_unique<Impl>()), path_(path)
+    : impl_(std::make_unique<Impl>()), path_(path)
 {
 	if (compressLevel < 0 || compressLevel > 9)
-		throw std::invalid_argument(
-			"RawlogWriter: compression level must be 0..9, got " + std::to_string(compressLevel));
+		throw std::invalid_argument("RawlogWriter: compression level must be 0..9, got " +
+		                            std::to_string(compressLevel));
 	impl_->tmpPath = path + ".tmp-" + std::to_string(::getpid());
 	bool ok = false;
 	if (compressLevel == 0)
@@ -40,8 +40,8 @@ RawlogWriter::RawlogWriter(const std::string& path, int compressLevel)
 		impl_->stream = std::move(f);
 	}
 	if (!ok)
-		throw std::runtime_error(
-			"cannot write rawlog '" + path + "': cannot create '" + impl_->tmpPath + "'");
+		throw std::runtime_error("cannot write rawlog '" + path + "': cannot create '" +
+		                         impl_->tmpPath + "'");
 }
 
 RawlogWriter::~RawlogWriter()
@@ -56,7 +56,8 @@ RawlogWriter::~RawlogWriter()
 
 void RawlogWriter::write(const mrpt::serialization::CSerializable& obj)
 {
-	if (impl_->closed) throw std::logic_error("RawlogWriter::write after close()");
+	if (impl_->closed)
+		throw std::logic_error("RawlogWriter::write after close()");
 	auto arch = mrpt::serialization::archiveFrom(*impl_->stream);
 	arch << obj;
 	++count_;
@@ -92,14 +93,14 @@ void RawlogWriter::writeScan(const Scan& scan)
 
 void RawlogWriter::close()
 {
-	if (impl_->closed) return;
+	if (impl_->closed)
+		return;
 	impl_->stream.reset();  // flushes and closes the file
 	std::error_code ec;
 	std::filesystem::rename(impl_->tmpPath, path_, ec);
 	if (ec)
-		throw std::runtime_error(
-			"cannot write rawlog '" + path_ + "': rename from temporary file failed: " +
-			ec.message());
+		throw std::runtime_error("cannot write rawlog '" + path_ +
+		                         "': rename from temporary file failed: " + ec.message());
 	impl_->closed = true;
 }
 

@@ -18,8 +18,8 @@ void ensureWritableDir(const std::string& dir)
 	std::error_code ec;
 	fs::create_directories(dir, ec);
 	if (!fs::is_directory(dir))
-		throw std::runtime_error(
-			"output folder '" + dir + "' cannot be created" + (ec ? ": " + ec.message() : ""));
+		throw std::runtime_error("output folder '" + dir + "' cannot be created" +
+		                         (ec ? ": " + ec.message() : ""));
 	const auto probe = fs::path(dir) / (".rasterslam-write-test-" + std::to_string(::getpid()));
 	bool ok = false;
 	{
@@ -27,25 +27,29 @@ void ensureWritableDir(const std::string& dir)
 		ok = f && (f << "x") && f.flush();
 	}
 	fs::remove(probe, ec);
-	if (!ok) throw std::runtime_error("output folder '" + dir + "' is not writable");
+	if (!ok)
+		throw std::runtime_error("output folder '" + dir + "' is not writable");
 }
 
-void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::containers::yaml& runInfo)
+void writeRunOutputs(const std::string& dir, const RunResult& res,
+                     const mrpt::containers::yaml& runInfo)
 {
 	ensureWritableDir(dir);
 	const fs::path d(dir);
 
 	// Every file is first written under a temporary name; only when all are written are they
 	// renamed, so a failure (a full disk) leaves the previous run's outputs whole.
-	std::vector<std::pair<std::string, std::string>> files;	 // name, contents
+	std::vector<std::pair<std::string, std::string>> files;  // name, contents
 	Trajectory est, online, gt;
 	bool allGt = !res.scans.empty();
 	for (std::size_t i = 0; i < res.scans.size(); i++)
 	{
 		est.push_back({res.scans[i].stamp, toIsometry(res.poses[i])});
-		online.push_back({res.scans[i].stamp, toIsometry(mrpt::poses::CPose3D(res.scans[i].onlinePose))});
+		online.push_back(
+		    {res.scans[i].stamp, toIsometry(mrpt::poses::CPose3D(res.scans[i].onlinePose))});
 		if (res.scans[i].groundTruth)
-			gt.push_back({res.scans[i].stamp, toIsometry(mrpt::poses::CPose3D(*res.scans[i].groundTruth))});
+			gt.push_back(
+			    {res.scans[i].stamp, toIsometry(mrpt::poses::CPose3D(*res.scans[i].groundTruth))});
 		else
 			allGt = false;
 	}
@@ -60,27 +64,28 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 	}
 
 	std::string csv =
-		"index,stamp,points,status,inliers,keyframe,late,read_ms,rasterize_ms,odometry_ms,"
-		"mapping_ms,loop_ms,total_ms,rss_mb\n";
+	    "index,stamp,points,status,inliers,keyframe,late,read_ms,rasterize_ms,odometry_ms,"
+	    "mapping_ms,loop_ms,total_ms,rss_mb\n";
 	for (const auto& r : res.scans)
-		csv += mrpt::format(
-			"%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f\n", r.index, r.stamp,
-			r.numPoints, toString(r.status), r.inliers, r.keyframe ? 1 : 0, r.late ? 1 : 0,
-			r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total, r.rssMb);
+		csv += mrpt::format("%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f\n",
+		                    r.index, r.stamp, r.numPoints, toString(r.status), r.inliers,
+		                    r.keyframe ? 1 : 0, r.late ? 1 : 0, r.ms.read, r.ms.rasterize,
+		                    r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total, r.rssMb);
 	files.emplace_back("timings.csv", csv);
 
 	if (!res.loopDecisions.empty())
 	{
 		std::string txt =
-			"# query_stamp candidate_stamp score inliers verified accepted reason x y z qx qy qz qw\n";
+		    "# query_stamp candidate_stamp score inliers verified accepted reason x y z qx qy qz "
+		    "qw\n";
 		for (const auto& l : res.loopDecisions)
 		{
 			const auto q = mrpt::poses::CPose3DQuat(l.T_candidate_query);
-			txt += mrpt::format(
-				"%.6f %.6f %.6f %zu %d %d %s %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", l.queryStamp,
-				l.candidateStamp, l.score, l.inliers, l.verified ? 1 : 0, l.accepted ? 1 : 0,
-				l.reason.empty() ? "-" : l.reason.c_str(), q.x(), q.y(), q.z(), q.quat().x(),
-				q.quat().y(), q.quat().z(), q.quat().r());
+			txt +=
+			    mrpt::format("%.6f %.6f %.6f %zu %d %d %s %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n",
+			                 l.queryStamp, l.candidateStamp, l.score, l.inliers, l.verified ? 1 : 0,
+			                 l.accepted ? 1 : 0, l.reason.empty() ? "-" : l.reason.c_str(), q.x(),
+			                 q.y(), q.z(), q.quat().x(), q.quat().y(), q.quat().z(), q.quat().r());
 		}
 		files.emplace_back("loops.txt", txt);
 	}
@@ -92,19 +97,23 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 
 	const std::string suffix = ".tmp-" + std::to_string(::getpid());
 	std::vector<std::string> written;
-	auto cleanup = [&] {
+	auto cleanup = [&]
+	{
 		std::error_code ec;
-		for (const auto& w : written) fs::remove(d / (w + suffix), ec);
+		for (const auto& w : written)
+			fs::remove(d / (w + suffix), ec);
 	};
 	for (const auto& [name, contents] : files)
 	{
 		const auto tmp = d / (name + suffix);
 		std::ofstream f(tmp, std::ios::binary);
 		written.push_back(name);
-		if (!f || !f.write(contents.data(), static_cast<std::streamsize>(contents.size())) || !f.flush())
+		if (!f || !f.write(contents.data(), static_cast<std::streamsize>(contents.size())) ||
+		    !f.flush())
 		{
 			cleanup();
-			throw std::runtime_error("error writing '" + (d / name).string() + "' (disk full?); the previous outputs are kept");
+			throw std::runtime_error("error writing '" + (d / name).string() +
+			                         "' (disk full?); the previous outputs are kept");
 		}
 	}
 	written.push_back("pose_graph.graph");
@@ -115,13 +124,16 @@ void writeRunOutputs(const std::string& dir, const RunResult& res, const mrpt::c
 	catch (const std::exception&)
 	{
 		cleanup();
-		throw std::runtime_error("error writing '" + (d / "pose_graph.graph").string() + "'; the previous outputs are kept");
+		throw std::runtime_error("error writing '" + (d / "pose_graph.graph").string() +
+		                         "'; the previous outputs are kept");
 	}
-	for (const auto& w : written) fs::rename(d / (w + suffix), d / w);
+	for (const auto& w : written)
+		fs::rename(d / (w + suffix), d / w);
 	// Files of an earlier run that this run does not produce would be mistaken for its own.
 	std::error_code ec;
 	for (const auto* stale : {"groundtruth.tum", "groundtruth.kitti", "loops.txt"})
-		if (std::find(written.begin(), written.end(), stale) == written.end()) fs::remove(d / stale, ec);
+		if (std::find(written.begin(), written.end(), stale) == written.end())
+			fs::remove(d / stale, ec);
 }
 
 }  // namespace rasterslam::io

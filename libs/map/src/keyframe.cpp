@@ -7,12 +7,15 @@ using namespace rasterslam;
 
 IMPLEMENTS_SERIALIZABLE(Keyframe, mrpt::serialization::CSerializable, rasterslam)
 
-uint8_t Keyframe::serializeGetVersion() const { return 1; }
+uint8_t Keyframe::serializeGetVersion() const
+{
+	return 1;
+}
 
 void Keyframe::serializeTo(mrpt::serialization::CArchive& out) const
 {
 	out << id << session << scanIndex << stamp << pose << u << v << angle << response << octave
-		<< xyz << descriptors;
+	    << xyz << descriptors;
 }
 
 void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -22,25 +25,27 @@ void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 		case 0:
 		case 1:
 			in >> id;
-			if (version >= 1) in >> session;
+			if (version >= 1)
+				in >> session;
 			else
 				session = 0;
 			in >> scanIndex >> stamp >> pose >> u >> v >> angle >> response >> octave >> xyz >>
-				descriptors;
+			    descriptors;
 			break;
-		default: MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+		default:
+			MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
 	}
 	const std::size_t n = u.size();
 	if (v.size() != n || angle.size() != n || response.size() != n || octave.size() != n ||
-		xyz.size() != 3 * n || descriptors.size() != 32 * n)
+	    xyz.size() != 3 * n || descriptors.size() != 32 * n)
 		THROW_EXCEPTION("rasterslam::Keyframe: inconsistent feature arrays in the stream");
 }
 
 bool Keyframe::operator==(const Keyframe& o) const
 {
-	return id == o.id && session == o.session && scanIndex == o.scanIndex && stamp == o.stamp && pose == o.pose && u == o.u &&
-		v == o.v && angle == o.angle && response == o.response && octave == o.octave && xyz == o.xyz &&
-		descriptors == o.descriptors;
+	return id == o.id && session == o.session && scanIndex == o.scanIndex && stamp == o.stamp &&
+	       pose == o.pose && u == o.u && v == o.v && angle == o.angle && response == o.response &&
+	       octave == o.octave && xyz == o.xyz && descriptors == o.descriptors;
 }
 
 void Keyframe::releaseFeatures()

@@ -2,8 +2,8 @@
 #include <mrpt/core/initializer.h>
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/stl_serialization.h>
-#include <rasterslam/map/local_map.h>
 #include <rasterslam/map/keyframe.h>
+#include <rasterslam/map/local_map.h>
 
 using namespace rasterslam;
 
@@ -17,13 +17,16 @@ MRPT_INITIALIZER(register_rasterslam_map_classes)
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LocalMapGraph));
 }
 
-uint8_t LocalMap::serializeGetVersion() const { return 0; }
+uint8_t LocalMap::serializeGetVersion() const
+{
+	return 0;
+}
 
 void LocalMap::serializeTo(mrpt::serialization::CArchive& out) const
 {
-	out << id << session << keyframes << createdStamp << updatedStamp << online << xyz << descriptors
-		<< observers << imagePng << imageResolution_m << imageExtent_m << baTracks << baInitialRms_m
-		<< baFinalRms_m;
+	out << id << session << keyframes << createdStamp << updatedStamp << online << xyz
+	    << descriptors << observers << imagePng << imageResolution_m << imageExtent_m << baTracks
+	    << baInitialRms_m << baFinalRms_m;
 }
 
 void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -32,49 +35,55 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	{
 		case 0:
 			in >> id >> session >> keyframes >> createdStamp >> updatedStamp >> online >> xyz >>
-				descriptors >> observers >> imagePng >> imageResolution_m >> imageExtent_m >> baTracks >>
-				baInitialRms_m >> baFinalRms_m;
+			    descriptors >> observers >> imagePng >> imageResolution_m >> imageExtent_m >>
+			    baTracks >> baInitialRms_m >> baFinalRms_m;
 			break;
-		default: MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+		default:
+			MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
 	}
 	const std::size_t n = observers.size();
 	if (xyz.size() != 3 * n || descriptors.size() != 32 * n)
 		THROW_EXCEPTION("rasterslam::LocalMap: inconsistent point arrays in the stream");
 	if (keyframes.empty() || keyframes.size() > kMaxKeyframes)
-		THROW_EXCEPTION(mrpt::format(
-			"rasterslam::LocalMap %llu: %zu keyframes (expected 1..%zu)",
-			static_cast<unsigned long long>(id), keyframes.size(), kMaxKeyframes));
+		THROW_EXCEPTION(mrpt::format("rasterslam::LocalMap %llu: %zu keyframes (expected 1..%zu)",
+		                             static_cast<unsigned long long>(id), keyframes.size(),
+		                             kMaxKeyframes));
 }
 
 int LocalMap::keyframeIndex(uint64_t kf) const
 {
 	for (std::size_t i = 0; i < keyframes.size(); i++)
-		if (keyframes[i] == kf) return static_cast<int>(i);
+		if (keyframes[i] == kf)
+			return static_cast<int>(i);
 	return -1;
 }
 
 std::size_t LocalMap::memoryBytes() const
 {
 	return sizeof(*this) + keyframes.capacity() * 8 + xyz.capacity() * 4 + descriptors.capacity() +
-		observers.capacity() * 4 + imagePng.capacity();
+	       observers.capacity() * 4 + imagePng.capacity();
 }
 
 bool LocalMap::operator==(const LocalMap& o) const
 {
 	return id == o.id && session == o.session && keyframes == o.keyframes &&
-		createdStamp == o.createdStamp && updatedStamp == o.updatedStamp && online == o.online &&
-		xyz == o.xyz && descriptors == o.descriptors && observers == o.observers &&
-		imagePng == o.imagePng && imageResolution_m == o.imageResolution_m &&
-		imageExtent_m == o.imageExtent_m && baTracks == o.baTracks &&
-		baInitialRms_m == o.baInitialRms_m && baFinalRms_m == o.baFinalRms_m;
+	       createdStamp == o.createdStamp && updatedStamp == o.updatedStamp && online == o.online &&
+	       xyz == o.xyz && descriptors == o.descriptors && observers == o.observers &&
+	       imagePng == o.imagePng && imageResolution_m == o.imageResolution_m &&
+	       imageExtent_m == o.imageExtent_m && baTracks == o.baTracks &&
+	       baInitialRms_m == o.baInitialRms_m && baFinalRms_m == o.baFinalRms_m;
 }
 
-uint8_t LocalMapGraph::serializeGetVersion() const { return 0; }
+uint8_t LocalMapGraph::serializeGetVersion() const
+{
+	return 0;
+}
 
 void LocalMapGraph::serializeTo(mrpt::serialization::CArchive& out) const
 {
 	out << static_cast<uint64_t>(edges.size());
-	for (const auto& e : edges) out << e.from << e.to << static_cast<uint8_t>(e.kind) << e.stamp;
+	for (const auto& e : edges)
+		out << e.from << e.to << static_cast<uint8_t>(e.kind) << e.stamp;
 }
 
 void LocalMapGraph::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -92,13 +101,15 @@ void LocalMapGraph::serializeFrom(mrpt::serialization::CArchive& in, uint8_t ver
 				uint8_t kind = 0;
 				in >> e.from >> e.to >> kind >> e.stamp;
 				if (kind > 2)
-					THROW_EXCEPTION(mrpt::format("rasterslam::LocalMapGraph: unknown edge kind %u", kind));
+					THROW_EXCEPTION(
+					    mrpt::format("rasterslam::LocalMapGraph: unknown edge kind %u", kind));
 				e.kind = static_cast<EdgeKind>(kind);
 				edges.push_back(e);
 			}
 			break;
 		}
-		default: MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
+		default:
+			MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
 	}
 }
 
@@ -110,7 +121,8 @@ void LocalMapGraph::add(uint64_t from, uint64_t to, EdgeKind kind, double stamp)
 std::size_t LocalMapGraph::count(EdgeKind kind) const
 {
 	std::size_t n = 0;
-	for (const auto& e : edges) n += e.kind == kind;
+	for (const auto& e : edges)
+		n += e.kind == kind;
 	return n;
 }
 
@@ -118,9 +130,12 @@ const char* rasterslam::toString(LocalMapGraph::EdgeKind k)
 {
 	switch (k)
 	{
-		case LocalMapGraph::EdgeKind::Sequential: return "sequential";
-		case LocalMapGraph::EdgeKind::Loop: return "loop";
-		case LocalMapGraph::EdgeKind::Relocalization: return "relocalization";
+		case LocalMapGraph::EdgeKind::Sequential:
+			return "sequential";
+		case LocalMapGraph::EdgeKind::Loop:
+			return "loop";
+		case LocalMapGraph::EdgeKind::Relocalization:
+			return "relocalization";
 	}
 	return "?";
 }

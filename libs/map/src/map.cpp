@@ -1,16 +1,15 @@
+#include <fcntl.h>
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/stl_serialization.h>
 #include <rasterslam/map/map.h>
-#include <fcntl.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
-
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -33,46 +32,60 @@ constexpr uint8_t kMapVersion = 3;
 std::optional<mrpt::poses::CPose3D> PoseView::operator()(uint64_t keyframe) const
 {
 	if (live)
-		if (const auto* p = live(keyframe)) return *p;
+		if (const auto* p = live(keyframe))
+			return *p;
 	if (prior)
-		if (const auto it = prior->find(keyframe); it != prior->end()) return it->second;
+		if (const auto it = prior->find(keyframe); it != prior->end())
+			return it->second;
 	return std::nullopt;
 }
 
 mrpt::poses::CPose3D PoseView::at(uint64_t keyframe) const
 {
 	const auto p = (*this)(keyframe);
-	if (!p) throw std::runtime_error("keyframe " + std::to_string(keyframe) + " has no pose");
+	if (!p)
+		throw std::runtime_error("keyframe " + std::to_string(keyframe) + " has no pose");
 	return *p;
 }
 
-uint64_t Map::nextKeyframeId() const { return keyframes.empty() ? 0 : keyframes.rbegin()->first + 1; }
-uint64_t Map::nextLocalMapId() const { return localMaps.empty() ? 0 : localMaps.rbegin()->first + 1; }
+uint64_t Map::nextKeyframeId() const
+{
+	return keyframes.empty() ? 0 : keyframes.rbegin()->first + 1;
+}
+uint64_t Map::nextLocalMapId() const
+{
+	return localMaps.empty() ? 0 : localMaps.rbegin()->first + 1;
+}
 
 LocalMap::ConstPtr Map::data(uint64_t localMap) const
 {
 	const auto& lm = localMaps.at(localMap);
-	if (lm->online || lm->hasData()) return lm;
+	if (lm->online || lm->hasData())
+		return lm;
 	std::lock_guard<std::mutex> lk(cache_.mutex);
 	for (const auto& c : cache_.maps)
-		if (c->id == localMap) return c;
+		if (c->id == localMap)
+			return c;
 	LocalMap::ConstPtr loaded;
 	if (const auto it = saved.find(localMap); it != saved.end() && savedStore)
 		loaded = savedStore->loadFile(it->second.file, localMap);
 	else if (offline)
 		loaded = offline->load(localMap);
 	else
-		throw std::runtime_error("local map " + std::to_string(localMap) + " is offline and there is no store");
+		throw std::runtime_error("local map " + std::to_string(localMap) +
+		                         " is offline and there is no store");
 	// A loop query verifies a handful of candidates: keep the last few, not the store.
 	cache_.maps.push_back(loaded);
-	if (cache_.maps.size() > 8) cache_.maps.pop_front();
+	if (cache_.maps.size() > 8)
+		cache_.maps.pop_front();
 	return loaded;
 }
 
 std::size_t Map::onlineCount() const
 {
 	std::size_t n = 0;
-	for (const auto& [id, lm] : localMaps) n += lm->online;
+	for (const auto& [id, lm] : localMaps)
+		n += lm->online;
 	return n;
 }
 
@@ -80,7 +93,8 @@ std::vector<uint64_t> Map::localMapsOf(uint64_t keyframe) const
 {
 	std::vector<uint64_t> out;
 	for (const auto& [id, lm] : localMaps)
-		if (lm->keyframeIndex(keyframe) >= 0) out.push_back(id);
+		if (lm->keyframeIndex(keyframe) >= 0)
+			out.push_back(id);
 	return out;
 }
 
@@ -89,12 +103,16 @@ std::size_t Map::memoryBytes() const
 	std::size_t b = 0;
 	for (const auto& [id, k] : keyframes)
 		b += sizeof(Keyframe) + k->xyz.capacity() * 4 + k->descriptors.capacity() +
-			k->u.capacity() * 16 + k->octave.capacity();
-	for (const auto& [id, lm] : localMaps) b += lm->memoryBytes();
+		     k->u.capacity() * 16 + k->octave.capacity();
+	for (const auto& [id, lm] : localMaps)
+		b += lm->memoryBytes();
 	return b + placeIndex.capacity();
 }
 
-std::string mapFilePath(const std::string& dir) { return (fs::path(dir) / "map.rsmap").string(); }
+std::string mapFilePath(const std::string& dir)
+{
+	return (fs::path(dir) / "map.rsmap").string();
+}
 
 namespace
 {
@@ -103,7 +121,8 @@ namespace
 void syncPath(const fs::path& p)
 {
 	const int fd = ::open(p.c_str(), O_RDONLY);
-	if (fd < 0) return;
+	if (fd < 0)
+		return;
 	::fsync(fd);
 	::close(fd);
 }
@@ -116,11 +135,14 @@ class FolderLock
 	{
 		const auto path = (fs::path(dir) / ".lock").string();
 		fd_ = ::open(path.c_str(), O_RDWR | O_CREAT, 0644);
-		if (fd_ < 0) throw std::runtime_error("cannot write in map folder '" + dir + "': " + std::strerror(errno));
+		if (fd_ < 0)
+			throw std::runtime_error("cannot write in map folder '" + dir +
+			                         "': " + std::strerror(errno));
 		if (::flock(fd_, LOCK_EX) != 0)
 		{
 			::close(fd_);
-			throw std::runtime_error("cannot lock map folder '" + dir + "': " + std::strerror(errno));
+			throw std::runtime_error("cannot lock map folder '" + dir +
+			                         "': " + std::strerror(errno));
 		}
 	}
 	~FolderLock() { ::close(fd_); }
@@ -140,23 +162,30 @@ void removeStaleTemporaries(const std::string& dir)
 	{
 		const auto name = e.path().filename().string();
 		const auto at = name.rfind(".tmp-");
-		if (at == std::string::npos) continue;
+		if (at == std::string::npos)
+			continue;
 		const auto stem = name.substr(0, at);
 		const auto ends = [&](const std::string& x) {
-			return stem.size() >= x.size() && stem.compare(stem.size() - x.size(), x.size(), x) == 0;
+			return stem.size() >= x.size() &&
+			       stem.compare(stem.size() - x.size(), x.size(), x) == 0;
 		};
-		if (stem != "map.rsmap" && stem != ".localmaps" && !ends(".rslm") && !ends(".png")) continue;
+		if (stem != "map.rsmap" && stem != ".localmaps" && !ends(".rslm") && !ends(".png"))
+			continue;
 		const std::string pid = name.substr(at + 5);
-		if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos || pid.size() > 9) continue;
+		if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos ||
+		    pid.size() > 9)
+			continue;
 		const auto p = static_cast<pid_t>(std::stol(pid));
-		if (p != ::getpid() && ::kill(p, 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
+		if (p != ::getpid() && ::kill(p, 0) != 0 && errno == ESRCH)
+			fs::remove_all(e.path(), ec);
 	}
 }
 }  // namespace
 
 void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 {
-	if (map.localMaps.empty()) throw std::runtime_error("the map has no local map: there is nothing to save");
+	if (map.localMaps.empty())
+		throw std::runtime_error("the map has no local map: there is nothing to save");
 	fs::create_directories(dir);
 	// One writer at a time: another process's cleanup must not remove files this save is
 	// about to name (the lock goes with the descriptor, also when the process is killed).
@@ -174,7 +203,8 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 	for (const auto& [id, stub] : map.localMaps)
 	{
 		if (const auto it = map.saved.find(id);
-			sameStore && it != map.saved.end() && fs::is_regular_file(fs::path(store.dir()) / it->second.file, ec))
+		    sameStore && it != map.saved.end() &&
+		    fs::is_regular_file(fs::path(store.dir()) / it->second.file, ec))
 		{
 			entries[id] = it->second;
 			continue;
@@ -194,12 +224,15 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 	{
 		const auto name = imgDir / mrpt::format("%04llu.png", static_cast<unsigned long long>(id));
 		// New ones, and any a killed save did not get to.
-		if (!isFresh.count(id) && fs::exists(name, ec)) continue;
+		if (!isFresh.count(id) && fs::exists(name, ec))
+			continue;
 		const auto lm = map.data(id);
-		if (lm->imagePng.empty()) continue;
+		if (lm->imagePng.empty())
+			continue;
 		const auto tmpImg = name.string() + ".tmp-" + std::to_string(::getpid());
 		std::ofstream o(tmpImg, std::ios::binary);
-		o.write(reinterpret_cast<const char*>(lm->imagePng.data()), static_cast<std::streamsize>(lm->imagePng.size()));
+		o.write(reinterpret_cast<const char*>(lm->imagePng.data()),
+		        static_cast<std::streamsize>(lm->imagePng.size()));
 		o.close();
 		if (!o)
 		{
@@ -214,11 +247,13 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 	try
 	{
 		mrpt::io::CFileGZOutputStream f;
-		if (!f.open(tmp, 1)) throw std::runtime_error("cannot write map '" + path + "'");
+		if (!f.open(tmp, 1))
+			throw std::runtime_error("cannot write map '" + path + "'");
 		auto a = mrpt::serialization::archiveFrom(f);
 		a << kMapMagic << kMapVersion << map.sessions;
 		a << static_cast<uint32_t>(map.sessionRecords.size());
-		for (const auto& [id, r] : map.sessionRecords) a << r.id << r.firstStamp << r.startedAt << r.sensor << r.input;
+		for (const auto& [id, r] : map.sessionRecords)
+			a << r.id << r.firstStamp << r.startedAt << r.sensor << r.input;
 		a << static_cast<uint64_t>(map.keyframes.size());
 		for (const auto& [id, k] : map.keyframes)
 		{
@@ -258,15 +293,21 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 
 	// 4. What the index no longer names.
 	std::set<std::string> named;
-	for (const auto& [id, e] : entries) named.insert(e.file);
+	for (const auto& [id, e] : entries)
+		named.insert(e.file);
 	for (const auto& e : fs::directory_iterator(store.dir(), ec))
-		if (e.path().extension() == ".rslm" && !named.count(e.path().filename().string())) fs::remove(e.path(), ec);
+		if (e.path().extension() == ".rslm" && !named.count(e.path().filename().string()))
+			fs::remove(e.path(), ec);
 	for (const auto& e : fs::directory_iterator(imgDir, ec))
 	{
 		const auto stem = e.path().stem().string();
-		if (e.path().extension() != ".png" || stem.find_first_not_of("0123456789") != std::string::npos) continue;
-		if (stem.empty() || stem.size() > 18) continue;
-		if (!map.localMaps.count(std::stoull(stem))) fs::remove(e.path(), ec);
+		if (e.path().extension() != ".png" ||
+		    stem.find_first_not_of("0123456789") != std::string::npos)
+			continue;
+		if (stem.empty() || stem.size() > 18)
+			continue;
+		if (!map.localMaps.count(std::stoull(stem)))
+			fs::remove(e.path(), ec);
 	}
 }
 
@@ -274,8 +315,10 @@ Map loadMap(const std::string& dir)
 {
 	const auto path = mapFilePath(dir);
 	std::error_code ec;
-	if (!fs::exists(path, ec)) throw std::runtime_error("map '" + path + "' does not exist");
-	if (!fs::is_regular_file(path, ec)) throw std::runtime_error("map '" + path + "' is not a file");
+	if (!fs::exists(path, ec))
+		throw std::runtime_error("map '" + path + "' does not exist");
+	if (!fs::is_regular_file(path, ec))
+		throw std::runtime_error("map '" + path + "' is not a file");
 	Map map;
 	try
 	{
@@ -284,21 +327,28 @@ Map loadMap(const std::string& dir)
 		uint32_t magic = 0;
 		uint8_t version = 0;
 		a >> magic >> version;
-		if (magic != kMapMagic) throw std::runtime_error("not a rasterslam map");
+		if (magic != kMapMagic)
+			throw std::runtime_error("not a rasterslam map");
 		if (version == 0)
-			throw std::runtime_error("map version 0 (written before the map manager): build the map again");
-		if (version > kMapVersion) throw std::runtime_error("unknown map version " + std::to_string(version));
+			throw std::runtime_error(
+			    "map version 0 (written before the map manager): build the map again");
+		if (version > kMapVersion)
+			throw std::runtime_error("unknown map version " + std::to_string(version));
 		a >> map.sessions;
 		if (version >= 2)
 		{
 			uint32_t n = 0;
 			a >> n;
-			if (n > map.sessions) throw std::runtime_error(std::to_string(n) + " session records for " + std::to_string(map.sessions) + " sessions");
+			if (n > map.sessions)
+				throw std::runtime_error(std::to_string(n) + " session records for " +
+				                         std::to_string(map.sessions) + " sessions");
 			for (uint32_t i = 0; i < n; i++)
 			{
 				SessionRecord r;
 				a >> r.id >> r.firstStamp >> r.startedAt >> r.sensor >> r.input;
-				if (r.id >= map.sessions) throw std::runtime_error("session record " + std::to_string(r.id) + " of " + std::to_string(map.sessions) + " sessions");
+				if (r.id >= map.sessions)
+					throw std::runtime_error("session record " + std::to_string(r.id) + " of " +
+					                         std::to_string(map.sessions) + " sessions");
 				map.sessionRecords[r.id] = r;
 			}
 		}
@@ -308,17 +358,19 @@ Map loadMap(const std::string& dir)
 		{
 			auto k = std::make_shared<Keyframe>();
 			a >> *k;
-			if (map.keyframes.count(k->id)) throw std::runtime_error("keyframe id " + std::to_string(k->id) + " twice");
+			if (map.keyframes.count(k->id))
+				throw std::runtime_error("keyframe id " + std::to_string(k->id) + " twice");
 			if (version >= 2 && k->session >= map.sessions)
-				throw std::runtime_error(
-					"keyframe " + std::to_string(k->id) + " of session " + std::to_string(k->session) + " in a map of " +
-					std::to_string(map.sessions) + " sessions");
+				throw std::runtime_error("keyframe " + std::to_string(k->id) + " of session " +
+				                         std::to_string(k->session) + " in a map of " +
+				                         std::to_string(map.sessions) + " sessions");
 			map.priorPoses[k->id] = k->pose;
 			map.keyframes[k->id] = k;
 		}
 		uint64_t nm = 0;
 		a >> nm;
-		if (version >= 3) map.savedStore = std::make_shared<LocalMapStore>((fs::path(dir) / "store").string());
+		if (version >= 3)
+			map.savedStore = std::make_shared<LocalMapStore>((fs::path(dir) / "store").string());
 		for (uint64_t i = 0; i < nm; i++)
 		{
 			auto lm = std::make_shared<LocalMap>();
@@ -328,31 +380,37 @@ Map loadMap(const std::string& dir)
 				LocalMapStore::Entry e;
 				a >> e.file >> e.points >> e.bytes;
 				// NNNNNN-CCCCCCCC.rslm of this very local map: nothing outside the store is named.
-				const auto idPart = mrpt::format("%06llu-", static_cast<unsigned long long>(lm->id));
-				if (e.file.size() != idPart.size() + 13 || e.file.compare(0, idPart.size(), idPart) != 0 ||
-					e.file.compare(e.file.size() - 5, 5, ".rslm") != 0 ||
-					e.file.find_first_not_of("0123456789abcdef", idPart.size()) != e.file.size() - 5)
-					throw std::runtime_error("local map " + std::to_string(lm->id) + ": bad file name '" + e.file + "'");
+				const auto idPart =
+				    mrpt::format("%06llu-", static_cast<unsigned long long>(lm->id));
+				if (e.file.size() != idPart.size() + 13 ||
+				    e.file.compare(0, idPart.size(), idPart) != 0 ||
+				    e.file.compare(e.file.size() - 5, 5, ".rslm") != 0 ||
+				    e.file.find_first_not_of("0123456789abcdef", idPart.size()) !=
+				        e.file.size() - 5)
+					throw std::runtime_error("local map " + std::to_string(lm->id) +
+					                         ": bad file name '" + e.file + "'");
 				if (!fs::is_regular_file(fs::path(map.savedStore->dir()) / e.file, ec))
 					throw std::runtime_error(
-						"local map " + std::to_string(lm->id) + ": its file '" +
-						(fs::path(map.savedStore->dir()) / e.file).string() + "' is missing");
+					    "local map " + std::to_string(lm->id) + ": its file '" +
+					    (fs::path(map.savedStore->dir()) / e.file).string() + "' is missing");
 				map.saved[lm->id] = e;
 			}
 			for (const auto k : lm->keyframes)
 				if (!map.keyframes.count(k))
-					throw std::runtime_error(
-						"local map " + std::to_string(lm->id) + " refers to missing keyframe " + std::to_string(k));
+					throw std::runtime_error("local map " + std::to_string(lm->id) +
+					                         " refers to missing keyframe " + std::to_string(k));
 			if (version >= 2 && lm->session >= map.sessions)
-				throw std::runtime_error(
-					"local map " + std::to_string(lm->id) + " of session " + std::to_string(lm->session) + " in a map of " +
-					std::to_string(map.sessions) + " sessions");
+				throw std::runtime_error("local map " + std::to_string(lm->id) + " of session " +
+				                         std::to_string(lm->session) + " in a map of " +
+				                         std::to_string(map.sessions) + " sessions");
 			if (map.localMaps.count(lm->id))
 				throw std::runtime_error("local map id " + std::to_string(lm->id) + " twice");
-			if (lm->online) map.onlineWhenSaved.insert(lm->id);
+			if (lm->online)
+				map.onlineWhenSaved.insert(lm->id);
 			// Read from a file, every local map is offline: in the store (version 3) or, for
 			// older maps, in memory whole (Map::data serves it either way).
-			if (version >= 3) lm->online = false;
+			if (version >= 3)
+				lm->online = false;
 			map.localMaps[lm->id] = lm;
 		}
 		a >> map.graph >> map.placeIndexClass >> map.placeIndex;
@@ -365,8 +423,10 @@ Map loadMap(const std::string& dir)
 		std::string what = e.what();
 		if (const auto pos = what.find("Message:"); pos != std::string::npos)
 			what = what.substr(pos + 9, what.find('\n', pos) - pos - 9);
-		if (const auto pos = what.find("Call stack"); pos != std::string::npos) what.resize(pos);
-		while (!what.empty() && (what.back() == '\n' || what.back() == ' ')) what.pop_back();
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos)
+			what.resize(pos);
+		while (!what.empty() && (what.back() == '\n' || what.back() == ' '))
+			what.pop_back();
 		throw std::runtime_error("cannot read map '" + path + "': " + what);
 	}
 	return map;

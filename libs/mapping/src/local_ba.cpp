@@ -403,14 +403,15 @@ LocalBaResult localBundleAdjustment(const std::vector<BaFrame>& frames, const Lo
 			{
 				const auto& T0 = frames[m.frame].T_anchor_frame;
 				auto* cost = new ceres::AutoDiffCostFunction<PlanarPointObservationCost, 3, 3, 3>(
-				    new PlanarPointObservationCost{featurePoint(frames[m.frame], m.index), sqrtInformation,
-				                                   T0.linear(), T0.translation()});
+				    new PlanarPointObservationCost{featurePoint(frames[m.frame], m.index),
+				                                   sqrtInformation, T0.linear(), T0.translation()});
 				problem.AddResidualBlock(cost, loss.get(), &deltas[3 * m.frame], &points[3 * t]);
 			}
 			else
 			{
 				auto* cost = new ceres::AutoDiffCostFunction<PointObservationCost, 3, 3, 4, 3>(
-				    new PointObservationCost{featurePoint(frames[m.frame], m.index), sqrtInformation});
+				    new PointObservationCost{featurePoint(frames[m.frame], m.index),
+				                             sqrtInformation});
 				double* x = &poses[kPoseSize * m.frame];
 				problem.AddResidualBlock(cost, loss.get(), x, x + 3, &points[3 * t]);
 			}
@@ -446,9 +447,11 @@ LocalBaResult localBundleAdjustment(const std::vector<BaFrame>& frames, const Lo
 		// The planar update written back as a full pose.
 		const double* d = &deltas[3 * f];
 		const auto& T0 = frames[f].T_anchor_frame;
-		const Eigen::Quaterniond q(Eigen::AngleAxisd(d[2], Vec3::UnitZ()) * Eigen::Quaterniond(T0.linear()));
+		const Eigen::Quaterniond q(Eigen::AngleAxisd(d[2], Vec3::UnitZ()) *
+		                           Eigen::Quaterniond(T0.linear()));
 		double* x = &poses[kPoseSize * f];
-		x[0] = T0.translation().x() + d[0], x[1] = T0.translation().y() + d[1], x[2] = T0.translation().z();
+		x[0] = T0.translation().x() + d[0], x[1] = T0.translation().y() + d[1],
+		x[2] = T0.translation().z();
 		x[3] = q.x(), x[4] = q.y(), x[5] = q.z(), x[6] = q.w();
 	}
 	for (std::size_t f = 1; f < nf; f++)

@@ -12,7 +12,8 @@ namespace
 {
 int imageSize(const RasterParams& p)
 {
-	if (p.mode == ProjectionMode::Pinhole) return p.pinholeSize_px;
+	if (p.mode == ProjectionMode::Pinhole)
+		return p.pinholeSize_px;
 	return static_cast<int>(std::ceil(2 * p.maxRange_m / p.resolution_m));
 }
 }  // namespace
@@ -23,7 +24,8 @@ bool projectPoint(const RasterParams& p, float x, float y, float z, float& u, fl
 	if (p.mode == ProjectionMode::Bev)
 	{
 		// Forward (+x) is up in the image, left (+y) is left.
-		const float inv = static_cast<float>(1.0 / p.resolution_m), ext = static_cast<float>(p.maxRange_m);
+		const float inv = static_cast<float>(1.0 / p.resolution_m),
+		            ext = static_cast<float>(p.maxRange_m);
 		u = (ext - y) * inv;
 		v = (ext - x) * inv;
 		return true;
@@ -32,16 +34,18 @@ bool projectPoint(const RasterParams& p, float x, float y, float z, float& u, fl
 	// then K: u = f x_cam / z_cam + c, v = f y_cam / z_cam + c.
 	const float H = static_cast<float>(p.cameraHeight_m);
 	const float zc = H - z;
-	if (zc < 0.5f) return false;  // at or above the camera
-	const float f = static_cast<float>(0.5 * size * (p.cameraHeight_m + p.sensorHeight_m) / p.maxRange_m);
+	if (zc < 0.5f)
+		return false;  // at or above the camera
+	const float f =
+	    static_cast<float>(0.5 * size * (p.cameraHeight_m + p.sensorHeight_m) / p.maxRange_m);
 	const float c = 0.5f * size;
 	u = f * (-y) / zc + c;
 	v = f * (-x) / zc + c;
 	return true;
 }
 
-RasterStats rasterizeElevation(
-	const std::vector<PointXYZI>& pts, const Plane& ground, const RasterParams& p, RasterFrame& out)
+RasterStats rasterizeElevation(const std::vector<PointXYZI>& pts, const Plane& ground,
+                               const RasterParams& p, RasterFrame& out)
 {
 	RasterStats st;
 	st.input = pts.size();
@@ -53,7 +57,8 @@ RasterStats rasterizeElevation(
 
 	const float rmin2 = static_cast<float>(p.minRange_m * p.minRange_m);
 	const float rmax2 = static_cast<float>(p.maxRange_m * p.maxRange_m);
-	const float gthr = static_cast<float>(p.groundThreshold_m), below = static_cast<float>(-p.belowGround_m);
+	const float gthr = static_cast<float>(p.groundThreshold_m),
+	            below = static_cast<float>(-p.belowGround_m);
 	const float h0 = static_cast<float>(p.sensorHeight_m);
 	for (std::size_t i = 0; i < pts.size(); i++)
 	{
@@ -76,9 +81,11 @@ RasterStats rasterizeElevation(
 			continue;
 		}
 		float u, v;
-		if (!projectPoint(p, q.x, q.y, q.z, u, v)) continue;
+		if (!projectPoint(p, q.x, q.y, q.z, u, v))
+			continue;
 		const int col = static_cast<int>(std::floor(u)), row = static_cast<int>(std::floor(v));
-		if (col < 0 || row < 0 || col >= size || row >= size) continue;
+		if (col < 0 || row < 0 || col >= size || row >= size)
+			continue;
 		++st.projected;
 		const std::size_t k = static_cast<std::size_t>(row) * size + col;
 		if (h > top[k])
@@ -89,11 +96,13 @@ RasterStats rasterizeElevation(
 	}
 
 	cv::Mat img(size, size, CV_8UC1, cv::Scalar(0));
-	const float g0 = static_cast<float>(p.greyMin_m), gscale = static_cast<float>(254.0 / (p.greyMax_m - p.greyMin_m));
+	const float g0 = static_cast<float>(p.greyMin_m),
+	            gscale = static_cast<float>(254.0 / (p.greyMax_m - p.greyMin_m));
 	std::array<int, 256> hist{};
 	for (std::size_t k = 0; k < npix; k++)
 	{
-		if (out.pixelToPoint[k] < 0) continue;
+		if (out.pixelToPoint[k] < 0)
+			continue;
 		const float g = std::clamp((top[k] - g0) * gscale, 0.0f, 254.0f);
 		const auto level = static_cast<uint8_t>(1 + std::lround(g));
 		img.data[k] = level;
@@ -111,7 +120,8 @@ RasterStats rasterizeElevation(
 			lut[l] = static_cast<uint8_t>(1 + (254LL * cum) / static_cast<long long>(st.pixels));
 		}
 		for (std::size_t k = 0; k < npix; k++)
-			if (img.data[k]) img.data[k] = lut[img.data[k]];
+			if (img.data[k])
+				img.data[k] = lut[img.data[k]];
 	}
 	out.image = mrpt::img::CImage(img, mrpt::img::SHALLOW_COPY);
 	return st;
@@ -127,9 +137,11 @@ int32_t pointAtPixel(const RasterFrame& f, float u, float v, int radius_px)
 		for (int du = -radius_px; du <= radius_px; du++)
 		{
 			const int c = cu + du, r = cv_ + dv;
-			if (c < 0 || r < 0 || c >= w || r >= h) continue;
+			if (c < 0 || r < 0 || c >= w || r >= h)
+				continue;
 			const int32_t idx = f.pixelToPoint[static_cast<std::size_t>(r) * w + c];
-			if (idx < 0) continue;
+			if (idx < 0)
+				continue;
 			const float d = (c + 0.5f - u) * (c + 0.5f - u) + (r + 0.5f - v) * (r + 0.5f - v);
 			if (d < bestD)
 			{

@@ -1,6 +1,6 @@
-#include <Eigen/Dense>
 #include <rasterslam/raster/ground_plane.h>
 
+#include <Eigen/Dense>
 #include <cmath>
 #include <random>
 
@@ -12,9 +12,11 @@ namespace
 Plane planeFromPoints(const std::vector<Eigen::Vector3f>& pts)
 {
 	Plane pl;
-	if (pts.size() < 3) return pl;
+	if (pts.size() < 3)
+		return pl;
 	Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-	for (const auto& p : pts) mean += p.cast<double>();
+	for (const auto& p : pts)
+		mean += p.cast<double>();
 	mean /= static_cast<double>(pts.size());
 	Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
 	for (const auto& p : pts)
@@ -24,7 +26,8 @@ Plane planeFromPoints(const std::vector<Eigen::Vector3f>& pts)
 	}
 	Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
 	Eigen::Vector3d n = es.eigenvectors().col(0);
-	if (n.z() < 0) n = -n;
+	if (n.z() < 0)
+		n = -n;
 	pl.n = n.cast<float>();
 	pl.d = static_cast<float>(-n.dot(mean));
 	pl.valid = true;
@@ -44,11 +47,13 @@ Plane fitGroundPlane(const std::vector<PointXYZI>& pts, const GroundParams& prm,
 		// An even subsample keeps the spatial spread of the candidates.
 		std::vector<Eigen::Vector3f> sub;
 		const double step = static_cast<double>(cand.size()) / prm.maxCandidates;
-		for (int i = 0; i < prm.maxCandidates; i++) sub.push_back(cand[static_cast<std::size_t>(i * step)]);
+		for (int i = 0; i < prm.maxCandidates; i++)
+			sub.push_back(cand[static_cast<std::size_t>(i * step)]);
 		cand.swap(sub);
 	}
 	Plane best;
-	if (cand.size() < 3) return best;
+	if (cand.size() < 3)
+		return best;
 	const float cosTilt = static_cast<float>(std::cos(prm.maxTilt_deg * M_PI / 180.0));
 	const float thr = static_cast<float>(prm.inlierThreshold_m);
 	std::mt19937 rng(seed);
@@ -58,13 +63,17 @@ Plane fitGroundPlane(const std::vector<PointXYZI>& pts, const GroundParams& prm,
 		const auto &a = cand[pick(rng)], &b = cand[pick(rng)], &c = cand[pick(rng)];
 		Eigen::Vector3f n = (b - a).cross(c - a);
 		const float norm = n.norm();
-		if (norm < 1e-6f) continue;
+		if (norm < 1e-6f)
+			continue;
 		n /= norm;
-		if (n.z() < 0) n = -n;
-		if (n.z() < cosTilt) continue;
+		if (n.z() < 0)
+			n = -n;
+		if (n.z() < cosTilt)
+			continue;
 		const float d = -n.dot(a);
 		int inl = 0;
-		for (const auto& p : cand) inl += std::abs(n.dot(p) + d) < thr;
+		for (const auto& p : cand)
+			inl += std::abs(n.dot(p) + d) < thr;
 		if (inl > best.inliers)
 		{
 			best.n = n;
@@ -73,10 +82,12 @@ Plane fitGroundPlane(const std::vector<PointXYZI>& pts, const GroundParams& prm,
 			best.valid = true;
 		}
 	}
-	if (!best.valid) return best;
+	if (!best.valid)
+		return best;
 	std::vector<Eigen::Vector3f> in;
 	for (const auto& p : cand)
-		if (std::abs(best.n.dot(p) + best.d) < thr) in.push_back(p);
+		if (std::abs(best.n.dot(p) + best.d) < thr)
+			in.push_back(p);
 	Plane refined = planeFromPoints(in);
 	if (refined.valid && refined.n.z() >= cosTilt)
 	{

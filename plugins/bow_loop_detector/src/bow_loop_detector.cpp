@@ -2,9 +2,9 @@
 // "Loop Closure"): the map manager hands over each finished local map's image words; every
 // new keyframe queries the database, and candidates are verified by matching the keyframe's
 // features against the candidate local map's points (after its local BA).
-#include <mrpt/io/CMemoryStream.h>
-
 #include "bow_loop_detector.h"
+
+#include <mrpt/io/CMemoryStream.h>
 
 using namespace rasterslam;
 
@@ -19,7 +19,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 {
 	vocabularyFile_ = p.getPath("vocabulary_file", "");
 	const auto search = p.getChoice("search", "bow", {"bow", "keyframes", "localmaps"});
-	search_ = search == "bow" ? Search::Bow : (search == "keyframes" ? Search::Keyframes : Search::LocalMaps);
+	search_ = search == "bow" ? Search::Bow
+	                          : (search == "keyframes" ? Search::Keyframes : Search::LocalMaps);
 	searchRadius_m_ = p.getDouble("search_radius_m", searchRadius_m_);
 	onlineMinMaps_ = p.getInt("online_min_maps", onlineMinMaps_);
 	onlineBranching_ = p.getInt("online_branching", onlineBranching_);
@@ -35,11 +36,15 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	ransac_.minInliers = p.getInt("min_inliers", 25);
 	ransac_.maxIterations = p.getInt("ransac_max_iterations", 1000);
 	relocMinInliers_ = p.getInt("relocalization_min_inliers", relocMinInliers_);
-	if (relocMinInliers_ < 3) throw ConfigError(p.context() + ".relocalization_min_inliers: must be >= 3");
+	if (relocMinInliers_ < 3)
+		throw ConfigError(p.context() + ".relocalization_min_inliers: must be >= 3");
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
-	if (onlineMinMaps_ < 2) throw ConfigError(p.context() + ".online_min_maps: must be >= 2");
-	if (maxCandidates_ < 1) throw ConfigError(p.context() + ".max_candidates: must be >= 1");
-	if (queryOrb_.numFeatures < 1) throw ConfigError(p.context() + ".query_features: must be >= 1");
+	if (onlineMinMaps_ < 2)
+		throw ConfigError(p.context() + ".online_min_maps: must be >= 2");
+	if (maxCandidates_ < 1)
+		throw ConfigError(p.context() + ".max_candidates: must be >= 1");
+	if (queryOrb_.numFeatures < 1)
+		throw ConfigError(p.context() + ".query_features: must be >= 1");
 
 	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);
 	vocab_.reset();
@@ -48,12 +53,14 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	{
 		std::error_code ec;
 		if (!std::filesystem::exists(vocabularyFile_, ec))
-			throw ConfigError(p.context() + ".vocabulary_file: '" + vocabularyFile_ + "' does not exist");
+			throw ConfigError(p.context() + ".vocabulary_file: '" + vocabularyFile_ +
+			                  "' does not exist");
 		mrpt::io::CFileGZInputStream f(vocabularyFile_);
 		auto obj = mrpt::serialization::archiveFrom(f).ReadObject();
 		vocab_ = std::dynamic_pointer_cast<bow::Vocabulary>(obj);
 		if (!vocab_ || vocab_->empty())
-			throw ConfigError(p.context() + ".vocabulary_file: '" + vocabularyFile_ + "' holds no vocabulary");
+			throw ConfigError(p.context() + ".vocabulary_file: '" + vocabularyFile_ +
+			                  "' holds no vocabulary");
 	}
 	db_ = bow::Database();
 	entryMap_.clear();
@@ -92,7 +99,8 @@ void BowLoopDetector::addEntry(uint64_t localMap, const std::vector<bow::Descrip
 void BowLoopDetector::trainOnline()
 {
 	std::vector<std::vector<bow::Descriptor>> images;
-	for (const auto& [id, d] : trainingImages_) images.push_back(d);
+	for (const auto& [id, d] : trainingImages_)
+		images.push_back(d);
 	auto v = std::make_shared<bow::Vocabulary>();
 	bow::TrainParams tp;
 	tp.branching = onlineBranching_;
@@ -103,9 +111,10 @@ void BowLoopDetector::trainOnline()
 	// New words: every entry is indexed again.
 	db_ = bow::Database();
 	entryMap_.clear();
-	for (const auto& [id, d] : trainingImages_) addEntry(id, d);
-	MRPT_LOG_INFO_FMT(
-		"online vocabulary trained on %zu local-map images: %zu words", trainingImages_.size(), vocab_->words());
+	for (const auto& [id, d] : trainingImages_)
+		addEntry(id, d);
+	MRPT_LOG_INFO_FMT("online vocabulary trained on %zu local-map images: %zu words",
+	                  trainingImages_.size(), vocab_->words());
 }
 
 void BowLoopDetector::index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors)
@@ -114,13 +123,15 @@ void BowLoopDetector::index(const LocalMap& lm, const std::vector<uint8_t>& imag
 	if (online_)
 	{
 		trainingImages_[lm.id] = desc;
-		if (static_cast<int>(trainingImages_.size()) >= onlineMinMaps_ && trainingImages_.size() >= 2 * trainedOn_)
+		if (static_cast<int>(trainingImages_.size()) >= onlineMinMaps_ &&
+		    trainingImages_.size() >= 2 * trainedOn_)
 		{
 			trainOnline();
 			return;
 		}
 	}
-	if (vocab_) addEntry(lm.id, desc);
+	if (vocab_)
+		addEntry(lm.id, desc);
 }
 
 namespace
@@ -128,19 +139,22 @@ namespace
 cv::Mat descriptorMat(const std::vector<uint8_t>& bytes)
 {
 	// A view, not a copy: the bytes outlive the matching.
-	return cv::Mat(static_cast<int>(bytes.size() / 32), 32, CV_8U, const_cast<uint8_t*>(bytes.data()));
+	return cv::Mat(static_cast<int>(bytes.size() / 32), 32, CV_8U,
+	               const_cast<uint8_t*>(bytes.data()));
 }
 }  // namespace
 
-features::RigidResult BowLoopDetector::verify(
-	const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe, int minInliers) const
+features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm, uint32_t seed,
+                                              int onlyKeyframe, int minInliers) const
 {
 	features::RigidResult fit;
 	const std::size_t n = lm.points();
-	if (n == 0 || q.desc.rows == 0) return fit;
+	if (n == 0 || q.desc.rows == 0)
+		return fit;
 	std::vector<int> rows;  // local-map point of each candidate row
 	cv::Mat cand;
-	if (onlyKeyframe < 0) cand = descriptorMat(lm.descriptors);
+	if (onlyKeyframe < 0)
+		cand = descriptorMat(lm.descriptors);
 	else
 	{
 		cand.create(0, 32, CV_8U);
@@ -148,7 +162,8 @@ features::RigidResult BowLoopDetector::verify(
 			if (lm.observers[i] & (1u << onlyKeyframe))
 			{
 				rows.push_back(static_cast<int>(i));
-				cand.push_back(cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
+				cand.push_back(
+				    cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
 			}
 	}
 	const auto matches = features::matchMutual(q.desc, cand, match_);
@@ -160,14 +175,17 @@ features::RigidResult BowLoopDetector::verify(
 		m.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
 	}
 	auto params = ransac_;
-	if (minInliers > 0) params.minInliers = minInliers;
+	if (minInliers > 0)
+		params.minInliers = minInliers;
 	fit = features::ransacRigid(p, m, params, seed);
-	for (auto& i : fit.inliers) i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
+	for (auto& i : fit.inliers)
+		i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
 	return fit;
 }
 
-uint64_t BowLoopDetector::nearestKeyframe(
-	const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose, const PoseView& poses)
+uint64_t BowLoopDetector::nearestKeyframe(const LocalMap& lm,
+                                          const Eigen::Isometry3d& T_anchor_pose,
+                                          const PoseView& poses)
 {
 	const auto anchor = poses.at(lm.anchor());
 	uint64_t best = lm.anchor();
@@ -176,8 +194,8 @@ uint64_t BowLoopDetector::nearestKeyframe(
 	{
 		const auto T_anchor_kf = poses.at(k) - anchor;
 		const double d = (Eigen::Vector3d(T_anchor_kf.x(), T_anchor_kf.y(), T_anchor_kf.z()) -
-						  T_anchor_pose.translation())
-							 .norm();
+		                  T_anchor_pose.translation())
+		                     .norm();
 		if (d < bestD)
 		{
 			bestD = d;
@@ -187,10 +205,10 @@ uint64_t BowLoopDetector::nearestKeyframe(
 	return best;
 }
 
-void BowLoopDetector::consider(
-	LoopDecision d, const features::RigidResult& fit, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
-	const Map& map, const PoseView& poses, bool acceptable, std::optional<LoopConstraint>& best,
-	std::size_t& bestDecision)
+void BowLoopDetector::consider(LoopDecision d, const features::RigidResult& fit, const LocalMap& lm,
+                               const Query& q, const KeyframeInfo& kf, const Map& map,
+                               const PoseView& poses, bool acceptable,
+                               std::optional<LoopConstraint>& best, std::size_t& bestDecision)
 {
 	d.candidateMap = lm.id;
 	d.inliers = fit.inliers.size();
@@ -214,7 +232,7 @@ void BowLoopDetector::consider(
 		c.to = kf.node;
 		c.T_from_to = T_kf_query;
 		c.information = mrpt::math::CMatrixDouble66(
-			features::pointToPointInformation(q.pts, fit.inliers, pointSigma_m_));
+		    features::pointToPointInformation(q.pts, fit.inliers, pointSigma_m_));
 		c.score = d.score;
 		c.inliers = d.inliers;
 		c.localMap = lm.id;
@@ -224,12 +242,14 @@ void BowLoopDetector::consider(
 	decisions_.push_back(d);
 }
 
-std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, const Map& map, const PoseView& poses)
+std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, const Map& map,
+                                                    const PoseView& poses)
 {
 	if (!kf.data)
 		throw std::runtime_error(
-			"rasterslam::BowLoopDetector needs keyframes with features: use an odometry that provides them (e.g. "
-			"rasterslam::OrbOdometry)");
+		    "rasterslam::BowLoopDetector needs keyframes with features: use an odometry that "
+		    "provides them (e.g. "
+		    "rasterslam::OrbOdometry)");
 	std::vector<LoopConstraint> out;
 	const std::size_t decisionsBefore = decisions_.size();
 	Query q;
@@ -238,10 +258,12 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	for (std::size_t i = 0; i < n; i++)
 		q.pts.emplace_back(kf.data->xyz[3 * i], kf.data->xyz[3 * i + 1], kf.data->xyz[3 * i + 2]);
 
-	if (!retiring_.empty()) retire(map.sessions - 1, kf.stamp);
+	if (!retiring_.empty())
+		retire(map.sessions - 1, kf.stamp);
 	std::optional<LoopConstraint> best;
 	std::size_t bestDecision = 0;
-	if (search_ != Search::Bow) searchByDistance(q, kf, map, poses, best, bestDecision);
+	if (search_ != Search::Bow)
+		searchByDistance(q, kf, map, poses, best, bestDecision);
 	else if (vocab_ && n > 0)
 	{
 		// Query the database with this keyframe's words.
@@ -251,20 +273,24 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		// looks like here and now.
 		const double norm = prevBow_ ? bow::Vocabulary::score(b, *prevBow_) : 1.0;
 		const auto results = db_.size() > 0 ? db_.query(b, static_cast<std::size_t>(maxResults_))
-											: std::vector<bow::Database::Result>{};
+		                                    : std::vector<bow::Database::Result>{};
 		int examined = 0;
 		for (const auto& r : results)
 		{
 			const auto it = map.localMaps.find(entryMap_.at(r.entry));
-			if (it == map.localMaps.end()) continue;  // not in this map (cannot happen unless removed)
+			if (it == map.localMaps.end())
+				continue;  // not in this map (cannot happen unless removed)
 			// Recent places of this session are no loops; an earlier session's clock is another
 			// clock (its stamps may overlap this one's), so its places always count.
 			const bool sameSession = it->second->session + 1 >= map.sessions;
-			if (sameSession && it->second->updatedStamp > kf.stamp - excludeRecent_s_) continue;
-			if (examined++ >= maxCandidates_) break;
+			if (sameSession && it->second->updatedStamp > kf.stamp - excludeRecent_s_)
+				continue;
+			if (examined++ >= maxCandidates_)
+				break;
 			// An offline local map is read from the store for the verification.
 			const auto data = candidate(map, it->first);
-			if (!data) continue;
+			if (!data)
+				continue;
 			const auto& lm = *data;
 			LoopDecision d;
 			d.queryStamp = kf.stamp;
@@ -280,9 +306,11 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		decisions_[bestDecision].accepted = true;
 		out.push_back(*best);
 		MRPT_LOG_INFO_FMT(
-			"loop: keyframe %llu (t=%.2f) -> keyframe %llu in local map %llu, score %.2f, %zu inliers",
-			static_cast<unsigned long long>(best->to), kf.stamp, static_cast<unsigned long long>(best->from),
-			static_cast<unsigned long long>(best->localMap), best->score, best->inliers);
+		    "loop: keyframe %llu (t=%.2f) -> keyframe %llu in local map %llu, score %.2f, %zu "
+		    "inliers",
+		    static_cast<unsigned long long>(best->to), kf.stamp,
+		    static_cast<unsigned long long>(best->from),
+		    static_cast<unsigned long long>(best->localMap), best->score, best->inliers);
 	}
 	// Every query leaves a line, so that recall counts the keyframes that found nothing.
 	if (decisions_.size() == decisionsBefore)
@@ -311,7 +339,8 @@ PlaceIndexContents readPlaceIndex(const std::vector<uint8_t>& bytes)
 	auto a = mrpt::serialization::archiveFrom(buf);
 	uint8_t version = 0;
 	a >> version;
-	if (version != 0) throw std::runtime_error("unknown place index version " + std::to_string(version));
+	if (version != 0)
+		throw std::runtime_error("unknown place index version " + std::to_string(version));
 	PlaceIndexContents c;
 	a >> *c.vocab >> c.db;
 	uint64_t n = 0;
@@ -329,16 +358,19 @@ PlaceIndexContents readPlaceIndex(const std::vector<uint8_t>& bytes)
 
 std::optional<std::set<uint64_t>> BowLoopDetector::indexedIn(const Map& map) const
 {
-	if (map.placeIndex.empty() || map.placeIndexClass != GetRuntimeClass()->className) return std::nullopt;
+	if (map.placeIndex.empty() || map.placeIndexClass != GetRuntimeClass()->className)
+		return std::nullopt;
 	std::set<uint64_t> out;
-	for (const auto& [e, lm] : readPlaceIndex(map.placeIndex).entries) out.insert(lm);
+	for (const auto& [e, lm] : readPlaceIndex(map.placeIndex).entries)
+		out.insert(lm);
 	return out;
 }
 
 bool BowLoopDetector::indexes(uint64_t localMap) const
 {
 	for (const auto& [e, lm] : entryMap_)
-		if (lm == localMap) return true;
+		if (lm == localMap)
+			return true;
 	return false;
 }
 
@@ -382,15 +414,17 @@ std::vector<uint8_t> BowLoopDetector::savePlaceIndex()
 	{
 		if (trainingImages_.size() < 2)
 			throw std::runtime_error(
-				"the online vocabulary needs at least 2 local maps and this run made " +
-				std::to_string(trainingImages_.size()) + ": give loop_detector.params.vocabulary_file");
+			    "the online vocabulary needs at least 2 local maps and this run made " +
+			    std::to_string(trainingImages_.size()) +
+			    ": give loop_detector.params.vocabulary_file");
 		trainOnline();
 	}
 	mrpt::io::CMemoryStream buf;
 	auto a = mrpt::serialization::archiveFrom(buf);
 	const uint8_t version = 0;
 	a << version << *vocab_ << db_ << static_cast<uint64_t>(entryMap_.size());
-	for (const auto& [e, lm] : entryMap_) a << static_cast<uint32_t>(e) << lm;
+	for (const auto& [e, lm] : entryMap_)
+		a << static_cast<uint32_t>(e) << lm;
 	const auto* p = static_cast<const uint8_t*>(buf.getRawBufferData());
 	return std::vector<uint8_t>(p, p + buf.getTotalBytesCount());
 }
@@ -399,19 +433,23 @@ void BowLoopDetector::loadPlaceIndex(const Map& map)
 {
 	const std::string mine = GetRuntimeClass()->className;
 	if (map.placeIndex.empty())
-		throw std::runtime_error("the map has no place index (it was saved without a loop detector)");
+		throw std::runtime_error(
+		    "the map has no place index (it was saved without a loop detector)");
 	if (map.placeIndexClass != mine)
-		throw std::runtime_error("the map's place index was written by " + map.placeIndexClass + ", not " + mine);
+		throw std::runtime_error("the map's place index was written by " + map.placeIndexClass +
+		                         ", not " + mine);
 	auto c = readPlaceIndex(map.placeIndex);
 	for (const auto& [e, lm] : c.entries)
 	{
-		if (!c.db.contains(e)) throw std::runtime_error("the place index refers to a missing database entry");
-		if (!map.localMaps.count(lm)) throw std::runtime_error("the place index refers to a missing local map");
+		if (!c.db.contains(e))
+			throw std::runtime_error("the place index refers to a missing database entry");
+		if (!map.localMaps.count(lm))
+			throw std::runtime_error("the place index refers to a missing local map");
 	}
 	if (c.entries.size() != c.db.size())
-		throw std::runtime_error(
-			"the place index has " + std::to_string(c.db.size()) + " entries and " + std::to_string(c.entries.size()) +
-			" of them name a local map");
+		throw std::runtime_error("the place index has " + std::to_string(c.db.size()) +
+		                         " entries and " + std::to_string(c.entries.size()) +
+		                         " of them name a local map");
 	vocab_ = c.vocab;
 	db_ = std::move(c.db);
 	entryMap_ = std::move(c.entries);

@@ -29,11 +29,12 @@ class BowLoopDetector : public LoopDetector
 
    public:
 	void index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors) override;
-	std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map& map, const PoseView& poses) override;
-	RelocalizationResult relocalize(
-		const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses) override;
-	RelocalizationResult locate(
-		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe) override;
+	std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map& map,
+	                                   const PoseView& poses) override;
+	RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster, const Map& map,
+	                                const PoseView& poses) override;
+	RelocalizationResult locate(const LocalMap& query, const Map& map, const PoseView& poses,
+	                            int onlyKeyframe) override;
 	bool forget(uint64_t localMap) override;
 	bool indexes(uint64_t localMap) const override;
 	std::optional<std::set<uint64_t>> indexedIn(const Map& map) const override;
@@ -53,25 +54,27 @@ class BowLoopDetector : public LoopDetector
 	};
 	/** The database's best candidates for the query, each verified; the one with the most
 	 *  inliers wins. */
-	RelocalizationResult relocalizeQuery(const Query& q, uint32_t seed, const Map& map, const PoseView& poses);
+	RelocalizationResult relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
+	                                     const PoseView& poses);
 	/** Matches the query against the local map's points (only those seen by keyframe
 	 *  `onlyKeyframe` when >= 0) and fits the rigid transform with RANSAC. */
 	/** The fit's T maps the query frame into the local map's anchor frame; its inliers are
 	 *  query feature indices. */
-	features::RigidResult verify(
-		const Query& q, const LocalMap& lm, uint32_t seed, int onlyKeyframe = -1, int minInliers = -1) const;
+	features::RigidResult verify(const Query& q, const LocalMap& lm, uint32_t seed,
+	                             int onlyKeyframe = -1, int minInliers = -1) const;
 	/** The keyframe of `lm` nearest to a pose given in the anchor's frame: the one a
 	 *  constraint to that pose is shortest from. */
-	static uint64_t nearestKeyframe(const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose, const PoseView& poses);
+	static uint64_t nearestKeyframe(const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose,
+	                                const PoseView& poses);
 	/** Turns a verification into a decision (logged) and keeps the best acceptable one. */
-	void consider(
-		LoopDecision d, const features::RigidResult& fit, const LocalMap& lm, const Query& q, const KeyframeInfo& kf,
-		const Map& map, const PoseView& poses, bool acceptable, std::optional<LoopConstraint>& best, std::size_t& bestDecision);
+	void consider(LoopDecision d, const features::RigidResult& fit, const LocalMap& lm,
+	              const Query& q, const KeyframeInfo& kf, const Map& map, const PoseView& poses,
+	              bool acceptable, std::optional<LoopConstraint>& best, std::size_t& bestDecision);
 	/** The paper's two baselines: candidates are the keyframes, or the local maps, near the
 	 *  current pose estimate; each is verified by feature matching. */
-	void searchByDistance(
-		const Query& q, const KeyframeInfo& kf, const Map& map, const PoseView& poses,
-		std::optional<LoopConstraint>& best, std::size_t& bestDecision);
+	void searchByDistance(const Query& q, const KeyframeInfo& kf, const Map& map,
+	                      const PoseView& poses, std::optional<LoopConstraint>& best,
+	                      std::size_t& bestDecision);
 	enum class Search
 	{
 		Bow,

@@ -5,9 +5,9 @@
 
 using namespace rasterslam;
 
-void BowLoopDetector::searchByDistance(
-	const Query& q, const KeyframeInfo& kf, const Map& map, const PoseView& poses,
-	std::optional<LoopConstraint>& best, std::size_t& bestDecision)
+void BowLoopDetector::searchByDistance(const Query& q, const KeyframeInfo& kf, const Map& map,
+                                       const PoseView& poses, std::optional<LoopConstraint>& best,
+                                       std::size_t& bestDecision)
 {
 	// Candidates: single keyframes (the points of a local map that keyframe saw), or whole
 	// local maps (centred on their keyframes' mean position), older than the exclusion
@@ -23,16 +23,20 @@ void BowLoopDetector::searchByDistance(
 	std::set<uint64_t> taken;  // a keyframe shared by two local maps is a candidate once
 	for (const auto& [id, lm] : map.localMaps)
 	{
-		if (lm->session + 1 >= map.sessions && lm->updatedStamp > kf.stamp - excludeRecent_s_) continue;
+		if (lm->session + 1 >= map.sessions && lm->updatedStamp > kf.stamp - excludeRecent_s_)
+			continue;
 		if (search_ == Search::Keyframes)
 		{
 			for (std::size_t k = 0; k < lm->keyframes.size(); k++)
 			{
 				const auto p = poses(lm->keyframes[k]);
-				if (!p) continue;
-				if (!taken.insert(lm->keyframes[k]).second) continue;
+				if (!p)
+					continue;
+				if (!taken.insert(lm->keyframes[k]).second)
+					continue;
 				const double d = (Eigen::Vector3d(p->x(), p->y(), p->z()) - here).norm();
-				if (d <= searchRadius_m_) cands.push_back({d, lm.get(), static_cast<int>(k)});
+				if (d <= searchRadius_m_)
+					cands.push_back({d, lm.get(), static_cast<int>(k)});
 			}
 		}
 		else
@@ -45,21 +49,28 @@ void BowLoopDetector::searchByDistance(
 					c += Eigen::Vector3d(p->x(), p->y(), p->z());
 					++n;
 				}
-			if (n == 0) continue;
+			if (n == 0)
+				continue;
 			const double d = (c / n - here).norm();
-			if (d <= searchRadius_m_) cands.push_back({d, lm.get(), -1});
+			if (d <= searchRadius_m_)
+				cands.push_back({d, lm.get(), -1});
 		}
 	}
-	std::stable_sort(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.dist < b.dist; });
+	std::stable_sort(cands.begin(), cands.end(),
+	                 [](const Cand& a, const Cand& b) { return a.dist < b.dist; });
 	for (const auto& c : cands)
 	{
 		LoopDecision d;
 		d.queryStamp = kf.stamp;
 		const auto data = candidate(map, c.lm->id);  // offline: read from the store
-		if (!data) continue;
-		const auto fit = verify(q, *data, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
+		if (!data)
+			continue;
+		const auto fit =
+		    verify(q, *data, static_cast<uint32_t>(kf.node * 31 + c.lm->id), c.keyframe);
 		// No BOW score here: the share of features that are inliers ranks the candidates.
-		d.score = q.pts.empty() ? 0 : static_cast<double>(fit.inliers.size()) / static_cast<double>(q.pts.size());
+		d.score = q.pts.empty()
+		              ? 0
+		              : static_cast<double>(fit.inliers.size()) / static_cast<double>(q.pts.size());
 		d.reason = fit.ok ? "ok" : "inliers";
 		consider(d, fit, *data, q, kf, map, poses, true, best, bestDecision);
 	}

@@ -4,8 +4,8 @@
 
 using namespace rasterslam;
 
-RelocalizationResult BowLoopDetector::relocalize(
-	const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses)
+RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterFrame& raster,
+                                                 const Map& map, const PoseView& poses)
 {
 	RelocalizationResult res;
 	if (!vocab_ || db_.size() == 0)
@@ -21,7 +21,8 @@ RelocalizationResult BowLoopDetector::relocalize(
 	for (int i = 0; i < static_cast<int>(kps.size()); i++)
 	{
 		const int32_t idx = raster::pointAtPixel(raster, kps[i].pt.x, kps[i].pt.y, 1);
-		if (idx < 0) continue;
+		if (idx < 0)
+			continue;
 		const auto& p = scan.points[static_cast<std::size_t>(idx)];
 		q.pts.emplace_back(p.x, p.y, p.z);
 		q.desc.push_back(all.row(i));
@@ -34,9 +35,8 @@ RelocalizationResult BowLoopDetector::relocalize(
 	return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses);
 }
 
-
-RelocalizationResult BowLoopDetector::locate(
-	const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe)
+RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& map,
+                                             const PoseView& poses, int onlyKeyframe)
 {
 	RelocalizationResult res;
 	if (!vocab_ || db_.size() == 0)
@@ -50,7 +50,8 @@ RelocalizationResult BowLoopDetector::locate(
 		if (onlyKeyframe < 0 || (query.observers[i] & (1u << onlyKeyframe)))
 		{
 			q.pts.emplace_back(query.xyz[3 * i], query.xyz[3 * i + 1], query.xyz[3 * i + 2]);
-			q.desc.push_back(cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&query.descriptors[32 * i])));
+			q.desc.push_back(
+			    cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&query.descriptors[32 * i])));
 		}
 	if (q.pts.size() < static_cast<std::size_t>(relocMinInliers_))
 	{
@@ -60,7 +61,8 @@ RelocalizationResult BowLoopDetector::locate(
 	return relocalizeQuery(q, static_cast<uint32_t>(query.id * 29 + 7 + onlyKeyframe), map, poses);
 }
 
-RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t seed, const Map& map, const PoseView& poses)
+RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
+                                                      const PoseView& poses)
 {
 	RelocalizationResult res;
 	bow::BowVector b;
@@ -75,9 +77,11 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 	for (const auto& r : results)
 	{
 		const auto it = map.localMaps.find(entryMap_.at(r.entry));
-		if (it == map.localMaps.end()) continue;
+		if (it == map.localMaps.end())
+			continue;
 		const auto data = candidate(map, it->first);  // offline: read from the store
-		if (!data) continue;
+		if (!data)
+			continue;
 		const auto& lm = *data;
 		const auto fit = verify(q, lm, static_cast<uint32_t>(seed + lm.id), -1, relocMinInliers_);
 		if (fit.ok && fit.inliers.size() > res.inliers)

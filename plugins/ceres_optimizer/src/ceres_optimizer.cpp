@@ -24,8 +24,7 @@ class CeresOptimizer : public Optimizer
 
    public:
 	/** Edges in `uncertain` get the robust loss (`loss`, `loss_scale`); the others none. */
-	OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph,
-	                         const EdgeSet& uncertain,
+	OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain,
 	                         const std::set<mrpt::graphs::TNodeID>& fixed) override;
 
    protected:
@@ -241,9 +240,12 @@ OptimizerResult CeresOptimizer::optimize(mrpt::graphs::CNetworkOfPoses3DInf& gra
 	const auto compRoot = componentRoots(blocks, edges);
 	std::set<TNodeID> heldComponents;
 	for (const auto& [id, b] : blocks)
-		if (fixed.count(id)) heldComponents.insert(compRoot.at(id));
-	const bool rootFixed = blocks.count(graph.root) && !heldComponents.count(compRoot.at(graph.root));
-	if (rootFixed) heldComponents.insert(compRoot.at(graph.root));
+		if (fixed.count(id))
+			heldComponents.insert(compRoot.at(id));
+	const bool rootFixed =
+	    blocks.count(graph.root) && !heldComponents.count(compRoot.at(graph.root));
+	if (rootFixed)
+		heldComponents.insert(compRoot.at(graph.root));
 	for (auto& [id, b] : blocks)
 		b.fixed = (id == graph.root && rootFixed) || fixed.count(id) > 0 ||
 		          (compRoot.at(id) == id && !heldComponents.count(id));

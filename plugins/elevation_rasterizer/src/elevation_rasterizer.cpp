@@ -36,8 +36,9 @@ MRPT_INITIALIZER(register_rasterslam_plugin_elevation_rasterizer)
 void ElevationRasterizer::initializeImpl(ParamReader& p)
 {
 	raster::RasterParams r;
-	r.mode = p.getChoice("projection", "bev", {"bev", "pinhole"}) == "bev" ? raster::ProjectionMode::Bev
-																		  : raster::ProjectionMode::Pinhole;
+	r.mode = p.getChoice("projection", "bev", {"bev", "pinhole"}) == "bev"
+	             ? raster::ProjectionMode::Bev
+	             : raster::ProjectionMode::Pinhole;
 	r.minRange_m = p.getDouble("min_range_m", r.minRange_m);
 	r.maxRange_m = p.getDouble("max_range_m", r.maxRange_m);
 	r.resolution_m = p.getDouble("resolution_m", r.resolution_m);
@@ -64,7 +65,8 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 	p.requirePositive(r.greyMax_m - r.greyMin_m, "grey_max_m - grey_min_m");
 	p.requirePositive(g.maxCandidates, "ground_max_candidates");
 	p.requirePositive(g.iterations, "ground_ransac_iterations");
-	if (r.minRange_m >= r.maxRange_m) throw ConfigError(p.context() + ".min_range_m: must be below max_range_m");
+	if (r.minRange_m >= r.maxRange_m)
+		throw ConfigError(p.context() + ".min_range_m: must be below max_range_m");
 	if (r.mode == raster::ProjectionMode::Bev && 2 * r.maxRange_m / r.resolution_m > 8192)
 		throw ConfigError(p.context() + ".resolution_m: the image would exceed 8192 pixels a side");
 	raster_ = r;
@@ -74,7 +76,8 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 void ElevationRasterizer::rasterize(const Scan& scan, RasterFrame& out)
 {
 	// The plane is fitted even without ground removal: grey levels are heights above it.
-	const raster::Plane plane = raster::fitGroundPlane(scan.points, ground_, static_cast<uint32_t>(scan.index + 1));
+	const raster::Plane plane =
+	    raster::fitGroundPlane(scan.points, ground_, static_cast<uint32_t>(scan.index + 1));
 	const auto st = raster::rasterizeElevation(scan.points, plane, raster_, out);
 	out.groundValid = plane.valid;
 	out.groundNormal[0] = plane.n.x();
@@ -82,7 +85,7 @@ void ElevationRasterizer::rasterize(const Scan& scan, RasterFrame& out)
 	out.groundNormal[2] = plane.n.z();
 	out.groundD = plane.d;
 	MRPT_LOG_DEBUG_FMT(
-		"scan %zu: %zu points, %zu outliers, %zu ground (plane %s), %zu projected into %zu pixels",
-		scan.index, st.input, st.outliers, st.ground, plane.valid ? "found" : "not found", st.projected,
-		st.pixels);
+	    "scan %zu: %zu points, %zu outliers, %zu ground (plane %s), %zu projected into %zu pixels",
+	    scan.index, st.input, st.outliers, st.ground, plane.valid ? "found" : "not found",
+	    st.projected, st.pixels);
 }

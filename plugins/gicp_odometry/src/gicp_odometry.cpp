@@ -98,7 +98,8 @@ GicpOdometry::Cloud::Ptr GicpOdometry::preprocess(const Scan& scan) const
 	for (const auto& q : scan.points)
 	{
 		const double r2 = double(q.x) * q.x + double(q.y) * q.y + double(q.z) * q.z;
-		if (r2 >= r2min && r2 <= r2max) raw->push_back(pcl::PointXYZ(q.x, q.y, q.z));
+		if (r2 >= r2min && r2 <= r2max)
+			raw->push_back(pcl::PointXYZ(q.x, q.y, q.z));
 	}
 	Cloud::Ptr out(new Cloud);
 	pcl::VoxelGrid<pcl::PointXYZ> vg;
@@ -114,7 +115,8 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 	OdometryResult r;
 	const auto t0 = std::chrono::steady_clock::now();
 	Cloud::Ptr cloud = preprocess(scan);
-	const double prepMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	const double prepMs =
+	    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 	const Eigen::Matrix4f prior = constantVelocity_ ? velocity_ : Eigen::Matrix4f::Identity();
 
 	if (!previous_)
@@ -129,7 +131,7 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 	Eigen::Matrix4f T = prior;
 	Gicp::MatricesVectorPtr nextCov;
 	if (static_cast<int>(cloud->size()) < minPoints_ ||
-		static_cast<int>(previous_->size()) < minPoints_)
+	    static_cast<int>(previous_->size()) < minPoints_)
 	{
 		r.status = TrackingStatus::Lost;
 		r.message = "too few points after filtering (" + std::to_string(cloud->size()) + ")";
@@ -149,15 +151,18 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 		gicp.align(aligned, prior);
 		nextCov = gicp.sourceCovariances();
 		MRPT_LOG_DEBUG_FMT(
-			"scan %zu: %zu points after filtering, preprocess %.1f ms, align %.1f ms", scan.index,
-			cloud->size(), prepMs,
-			std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() - prepMs);
+		    "scan %zu: %zu points after filtering, preprocess %.1f ms, align %.1f ms", scan.index,
+		    cloud->size(), prepMs,
+		    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+		            .count() -
+		        prepMs);
 		const double fitness = gicp.getFitnessScore(maxCorrespondence_m_);
 		if (!gicp.hasConverged() || !std::isfinite(fitness) || fitness > maxFitness_m2_)
 		{
 			r.status = TrackingStatus::Lost;
-			r.message = gicp.hasConverged() ? "fitness " + std::to_string(fitness) + " m^2 above max_fitness_m2"
-											: "GICP did not converge";
+			r.message = gicp.hasConverged()
+			                ? "fitness " + std::to_string(fitness) + " m^2 above max_fitness_m2"
+			                : "GICP did not converge";
 		}
 		else
 		{
@@ -169,11 +174,15 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 	// GICP aligns the current scan (source) onto the previous one (target): that transform is
 	// the pose of the current scan in the previous scan's frame.
 	r.T_prev_curr = toPose(Eigen::Isometry3d(T.cast<double>()));
-	if (r.status == TrackingStatus::Ok) velocity_ = T;
+	if (r.status == TrackingStatus::Ok)
+		velocity_ = T;
 	r.information.setZero();
-	for (int i = 0; i < 3; i++) r.information(i, i) = infoTranslation_;
-	for (int i = 3; i < 6; i++) r.information(i, i) = infoRotation_;
-	if (r.status == TrackingStatus::Lost) r.information *= 1e-3;  // a guess: trust it little
+	for (int i = 0; i < 3; i++)
+		r.information(i, i) = infoTranslation_;
+	for (int i = 3; i < 6; i++)
+		r.information(i, i) = infoRotation_;
+	if (r.status == TrackingStatus::Lost)
+		r.information *= 1e-3;  // a guess: trust it little
 	previous_ = cloud;
 	previousCov_ = nextCov;
 	if (++sinceKeyframe_ >= keyframeEvery_)

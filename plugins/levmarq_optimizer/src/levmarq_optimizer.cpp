@@ -13,9 +13,8 @@ class LevMarqOptimizer : public Optimizer
 
    public:
 	/** MRPT's SPA has no robust loss: `uncertain` edges are weighted like the others. */
-	OptimizerResult optimize(
-		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain,
-		const std::set<mrpt::graphs::TNodeID>& fixed) override;
+	OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain,
+	                         const std::set<mrpt::graphs::TNodeID>& fixed) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override
@@ -44,12 +43,13 @@ MRPT_INITIALIZER(register_rasterslam_plugin_levmarq)
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LevMarqOptimizer));
 }
 
-OptimizerResult LevMarqOptimizer::optimize(
-	mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& /*uncertain*/,
-	const std::set<mrpt::graphs::TNodeID>& fixed)
+OptimizerResult LevMarqOptimizer::optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph,
+                                           const EdgeSet& /*uncertain*/,
+                                           const std::set<mrpt::graphs::TNodeID>& fixed)
 {
 	OptimizerResult r;
-	if (graph.edges.empty() || graph.nodes.size() < 2) return r;
+	if (graph.edges.empty() || graph.nodes.size() < 2)
+		return r;
 	const auto t0 = std::chrono::steady_clock::now();
 	mrpt::containers::yaml params = mrpt::containers::yaml::Map();
 	params["max_iterations"] = maxIterations_;
@@ -63,12 +63,14 @@ OptimizerResult LevMarqOptimizer::optimize(
 	// earlier session's keyframes) they hold the graph, and the root moves too.
 	std::set<mrpt::graphs::TNodeID> free;
 	for (const auto& [id, p] : graph.nodes)
-		if (!fixed.count(id)) free.insert(id);
-	mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, fixed.empty() ? nullptr : &free, params);
+		if (!fixed.count(id))
+			free.insert(id);
+	mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, fixed.empty() ? nullptr : &free,
+	                                            params);
 	r.ran = true;
 	r.iterations = info.num_iters;
 	r.finalError = graph.chi2();
 	r.time_ms =
-		std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 	return r;
 }

@@ -8,7 +8,6 @@
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/mapping/local_ba.h>
 #include <rasterslam/raster/elevation_image.h>
-
 #include <unistd.h>
 
 #include <atomic>
@@ -22,22 +21,20 @@ class LocalMapManager : public MapManager
 	DEFINE_MRPT_OBJECT(LocalMapManager, rasterslam)
 
    public:
-	MappingUpdate addKeyframe(
-		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster, const PoseView& poses) override;
+	MappingUpdate addKeyframe(const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster,
+	                          const PoseView& poses) override;
 	MappingUpdate finish(const PoseView& poses) override;
 	void loopAccepted(uint64_t fromKf, uint64_t toKf, double stamp) override;
 	const Map& map() const override { return map_; }
 	void describeSession(const SessionRecord& session) override;
-	Added addMap(
-		const Map& other, const std::map<uint64_t, mrpt::poses::CPose3D>& poses,
-		const std::vector<std::pair<uint64_t, uint64_t>>& links) override;
+	Added addMap(const Map& other, const std::map<uint64_t, mrpt::poses::CPose3D>& poses,
+	             const std::vector<std::pair<uint64_t, uint64_t>>& links) override;
 	void loadMap(const std::string& dir) override;
 	std::size_t removeLocalMaps(const std::set<uint64_t>& localMaps) override;
 	std::vector<uint8_t> imageDescriptors(uint64_t localMap) override;
 	~LocalMapManager() override;
-	void saveMap(
-		const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
-		const std::vector<uint8_t>& placeIndex) override;
+	void saveMap(const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
+	             const std::vector<uint8_t>& placeIndex) override;
 
    protected:
 	void initializeImpl(ParamReader& p) override;
@@ -78,16 +75,20 @@ class LocalMapManager : public MapManager
 	// state
 	Map map_;
 	uint32_t session_ = 0;
-	std::vector<uint64_t> open_;  //!< keyframes of the local map being built
+	std::vector<uint64_t> open_;    //!< keyframes of the local map being built
 	bool openSharesFirst_ = false;  //!< open_[0] is the last keyframe of the previous local map
-	std::optional<uint64_t> lastLocalMap_;  //!< the previous local map, when the open one continues it
+	std::optional<uint64_t>
+	    lastLocalMap_;  //!< the previous local map, when the open one continues it
 	std::map<uint64_t, std::vector<PointXYZI>> clouds_;  //!< non-ground points of open keyframes
-	std::vector<uint64_t> pendingLoops_;  //!< local maps a keyframe of the open map closed a loop with
-	std::vector<uint64_t> pendingRelocs_;  //!< local maps a keyframe of the open map was relocalized in
+	std::vector<uint64_t>
+	    pendingLoops_;  //!< local maps a keyframe of the open map closed a loop with
+	std::vector<uint64_t>
+	    pendingRelocs_;  //!< local maps a keyframe of the open map was relocalized in
 	std::unique_ptr<features::OrbExtractor> orb_;
 	double route_m_ = 0;  //!< distance travelled, along the keyframes
 	std::optional<uint64_t> lastKf_;
-	std::map<uint64_t, double> routeAt_;  //!< route distance when each online local map was finished
+	std::map<uint64_t, double>
+	    routeAt_;  //!< route distance when each online local map was finished
 	std::size_t culledByDistance_ = 0, culledByLoop_ = 0, culledByCount_ = 0;
 };
 }  // namespace rasterslam
@@ -114,7 +115,8 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	ba_.gate_m = p.getDouble("ba_gate_m", ba_.gate_m);
 	ba_.maxHamming = p.getInt("ba_max_hamming", ba_.maxHamming);
 	ba_.planar = p.getChoice("ba_dof", "full", {"planar", "full"}) == "planar";
-	mapPointsPerFeature_ = p.getChoice("map_points", "observations", {"observations", "tracks"}) == "observations";
+	mapPointsPerFeature_ =
+	    p.getChoice("map_points", "observations", {"observations", "tracks"}) == "observations";
 	mapRaster_.resolution_m = p.getDouble("map_resolution_m", 0.2);
 	mapRaster_.maxRange_m = p.getDouble("map_extent_m", 60.0);
 	mapRaster_.minRange_m = 0;
@@ -127,14 +129,19 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	indexReplaced_ = p.getBool("index_replaced", indexReplaced_);
 	maxOnlineMaps_ = p.getInt("max_online_maps", maxOnlineMaps_);
 	offlineDir_ = p.getString("offline_dir", "");
-	if (cullDistance_m_ < 0) throw ConfigError(p.context() + ".cull_distance_m: must be >= 0 (0: never)");
-	if (maxOnlineMaps_ < 0) throw ConfigError(p.context() + ".max_online_maps: must be >= 0 (0: no bound)");
+	if (cullDistance_m_ < 0)
+		throw ConfigError(p.context() + ".cull_distance_m: must be >= 0 (0: never)");
+	if (maxOnlineMaps_ < 0)
+		throw ConfigError(p.context() + ".max_online_maps: must be >= 0 (0: no bound)");
 	if (keyframesPerMap_ < 1 || keyframesPerMap_ > static_cast<int>(LocalMap::kMaxKeyframes))
 		throw ConfigError(p.context() + ".keyframes_per_map: must be in 1..32");
-	if (!(maxExtent_m_ > 0)) throw ConfigError(p.context() + ".max_extent_m: must be > 0");
-	if (ba_.maxIterations < 1) throw ConfigError(p.context() + ".ba_max_iterations: must be >= 1");
+	if (!(maxExtent_m_ > 0))
+		throw ConfigError(p.context() + ".max_extent_m: must be > 0");
+	if (ba_.maxIterations < 1)
+		throw ConfigError(p.context() + ".ba_max_iterations: must be >= 1");
 	if (!(ba_.sigmaXY_m > 0) || !(ba_.sigmaZ_m > 0) || !(ba_.huber > 0) || !(ba_.gate_m > 0))
-		throw ConfigError(p.context() + ": ba_sigma_xy_m, ba_sigma_z_m, ba_huber and ba_gate_m must be > 0");
+		throw ConfigError(p.context() +
+		                  ": ba_sigma_xy_m, ba_sigma_z_m, ba_huber and ba_gate_m must be > 0");
 	if (!(mapRaster_.resolution_m > 0) || !(mapRaster_.maxRange_m > 0))
 		throw ConfigError(p.context() + ": map_resolution_m and map_extent_m must be > 0");
 	orb_ = std::make_unique<features::OrbExtractor>(mapOrb_);
@@ -170,9 +177,10 @@ LocalMapStore& LocalMapManager::store()
 		{
 			// Nothing asked to keep it: a folder of this run, removed when it ends.
 			static std::atomic<int> counter{0};
-			dir = (std::filesystem::temp_directory_path() /
-				   mrpt::format("rasterslam-offline-%d-%d", static_cast<int>(::getpid()), counter++))
-					  .string();
+			dir =
+			    (std::filesystem::temp_directory_path() /
+			     mrpt::format("rasterslam-offline-%d-%d", static_cast<int>(::getpid()), counter++))
+			        .string();
 			ownOfflineDir_ = true;
 		}
 		map_.offline = std::make_shared<LocalMapStore>(dir);
@@ -183,7 +191,8 @@ LocalMapStore& LocalMapManager::store()
 void LocalMapManager::goOffline(uint64_t localMap, const char* why)
 {
 	auto& lm = map_.localMaps.at(localMap);
-	if (!lm->online) return;
+	if (!lm->online)
+		return;
 	LocalMap copy = *lm;
 	copy.online = false;
 	store().save(copy);
@@ -201,7 +210,8 @@ void LocalMapManager::goOffline(uint64_t localMap, const char* why)
 	stub->baFinalRms_m = lm->baFinalRms_m;
 	lm = stub;
 	routeAt_.erase(localMap);
-	MRPT_LOG_DEBUG_FMT("local map %llu offline (%s)", static_cast<unsigned long long>(localMap), why);
+	MRPT_LOG_DEBUG_FMT("local map %llu offline (%s)", static_cast<unsigned long long>(localMap),
+	                   why);
 }
 
 void LocalMapManager::cull()
@@ -222,21 +232,24 @@ void LocalMapManager::cull()
 			// The one finished longest ago along the route.
 			auto oldest = routeAt_.begin();
 			for (auto it = routeAt_.begin(); it != routeAt_.end(); ++it)
-				if (it->second < oldest->second) oldest = it;
+				if (it->second < oldest->second)
+					oldest = it;
 			goOffline(oldest->first, "count");
 			++culledByCount_;
 		}
 }
 
-MappingUpdate LocalMapManager::addKeyframe(
-	const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster, const PoseView& poses)
+MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& scan,
+                                           const RasterFrame* raster, const PoseView& poses)
 {
 	if (!kf.data)
 		throw std::runtime_error(
-			"rasterslam::LocalMapManager needs keyframes with features: use an odometry that provides them (e.g. "
-			"rasterslam::OrbOdometry)");
+		    "rasterslam::LocalMapManager needs keyframes with features: use an odometry that "
+		    "provides them (e.g. "
+		    "rasterslam::OrbOdometry)");
 	if (map_.keyframes.count(kf.node))
-		throw std::runtime_error("keyframe id " + std::to_string(kf.node) + " is already in the map");
+		throw std::runtime_error("keyframe id " + std::to_string(kf.node) +
+		                         " is already in the map");
 	auto k = std::make_shared<Keyframe>(*kf.data);
 	k->id = kf.node;
 	k->session = session_;
@@ -251,15 +264,18 @@ MappingUpdate LocalMapManager::addKeyframe(
 	auto& cloud = clouds_[k->id];
 	if (raster)
 		for (const auto idx : raster->pixelToPoint)
-			if (idx >= 0) cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
+			if (idx >= 0)
+				cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
 
 	MappingUpdate up;
 	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.
-	if (kf.afterLoss && !open_.empty()) finishOpen(poses, up, false);
+	if (kf.afterLoss && !open_.empty())
+		finishOpen(poses, up, false);
 	// After that: the edge belongs to the local map this keyframe starts or joins.
 	if (kf.locatedAt)
 		if (const auto maps = map_.localMapsOf(*kf.locatedAt);
-			!maps.empty() && std::find(pendingRelocs_.begin(), pendingRelocs_.end(), maps.front()) == pendingRelocs_.end())
+		    !maps.empty() && std::find(pendingRelocs_.begin(), pendingRelocs_.end(),
+		                               maps.front()) == pendingRelocs_.end())
 			pendingRelocs_.push_back(maps.front());
 	open_.push_back(k->id);
 	bool full = static_cast<int>(open_.size()) >= keyframesPerMap_;
@@ -268,7 +284,8 @@ MappingUpdate LocalMapManager::addKeyframe(
 		const auto d = poses.at(k->id).distanceTo(poses.at(open_.front()));
 		full = d > maxExtent_m_;
 	}
-	if (full) finishOpen(poses, up, true);
+	if (full)
+		finishOpen(poses, up, true);
 	return up;
 }
 
@@ -276,8 +293,10 @@ MappingUpdate LocalMapManager::finish(const PoseView& poses)
 {
 	MappingUpdate up;
 	// Only the keyframe shared with the previous local map is open: nothing new to map.
-	if (!(open_.size() == 1 && openSharesFirst_) && !open_.empty()) finishOpen(poses, up, false);
-	for (const auto k : open_) release(k);
+	if (!(open_.size() == 1 && openSharesFirst_) && !open_.empty())
+		finishOpen(poses, up, false);
+	for (const auto k : open_)
+		release(k);
 	open_.clear();
 	return up;
 }
@@ -286,7 +305,8 @@ void LocalMapManager::loopAccepted(uint64_t fromKf, uint64_t /*toKf*/, double /*
 {
 	// The query keyframe is in the open local map: the edge is made when that map is done.
 	const auto maps = map_.localMapsOf(fromKf);
-	if (maps.empty()) return;
+	if (maps.empty())
+		return;
 	if (std::find(pendingLoops_.begin(), pendingLoops_.end(), maps.front()) == pendingLoops_.end())
 		pendingLoops_.push_back(maps.front());
 	// Paper, "Map Update": the revisited place gets a new local map from the current scans
@@ -303,7 +323,8 @@ void LocalMapManager::loopAccepted(uint64_t fromKf, uint64_t /*toKf*/, double /*
 void LocalMapManager::release(uint64_t kf)
 {
 	clouds_.erase(kf);
-	if (const auto it = map_.keyframes.find(kf); it != map_.keyframes.end()) it->second->releaseFeatures();
+	if (const auto it = map_.keyframes.find(kf); it != map_.keyframes.end())
+		it->second->releaseFeatures();
 }
 
 void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool continues)
@@ -329,20 +350,24 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	lm->updatedStamp = map_.keyframes.at(ids.back())->stamp;
 
 	std::vector<Eigen::Isometry3d> T(frames.size());
-	for (std::size_t i = 0; i < frames.size(); i++) T[i] = frames[i].T_anchor_frame;
+	for (std::size_t i = 0; i < frames.size(); i++)
+		T[i] = frames[i].T_anchor_frame;
 	mapping::LocalBaResult ba;
-	if (localBa_ && frames.size() >= 2) ba = mapping::localBundleAdjustment(frames, ba_);
+	if (localBa_ && frames.size() >= 2)
+		ba = mapping::localBundleAdjustment(frames, ba_);
 	if (ba.ran)
 	{
 		T = ba.T_anchor_frame;
 		up.anchor = ids.front();
-		for (std::size_t i = 1; i < ids.size(); i++) up.T_anchor_kf.emplace_back(ids[i], toPose(T[i]));
+		for (std::size_t i = 1; i < ids.size(); i++)
+			up.T_anchor_kf.emplace_back(ids[i], toPose(T[i]));
 		lm->baTracks = static_cast<uint32_t>(ba.tracks);
 		lm->baInitialRms_m = static_cast<float>(ba.initialRms_m);
 		lm->baFinalRms_m = static_cast<float>(ba.finalRms_m);
 		if (!mapPointsPerFeature_)
 		{
-			for (const auto& p : ba.points) lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
+			for (const auto& p : ba.points)
+				lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
 			lm->descriptors = std::move(ba.descriptors);
 			lm->observers = std::move(ba.observers);
 		}
@@ -353,14 +378,17 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 				for (std::size_t j = 0; j < frames[i].n; j++)
 				{
 					const int pt = ba.pointOfFeature[i][j];
-					const Eigen::Vector3f p = pt >= 0
-						? ba.points[static_cast<std::size_t>(pt)]
-						: (T[i] * Eigen::Vector3d(frames[i].xyz[3 * j], frames[i].xyz[3 * j + 1], frames[i].xyz[3 * j + 2]))
-							  .cast<float>();
+					const Eigen::Vector3f p =
+					    pt >= 0 ? ba.points[static_cast<std::size_t>(pt)]
+					            : (T[i] * Eigen::Vector3d(frames[i].xyz[3 * j],
+					                                      frames[i].xyz[3 * j + 1],
+					                                      frames[i].xyz[3 * j + 2]))
+					                  .cast<float>();
 					lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
-					lm->descriptors.insert(
-						lm->descriptors.end(), frames[i].descriptors + 32 * j, frames[i].descriptors + 32 * (j + 1));
-					lm->observers.push_back(pt >= 0 ? ba.observers[static_cast<std::size_t>(pt)] : (1u << i));
+					lm->descriptors.insert(lm->descriptors.end(), frames[i].descriptors + 32 * j,
+					                       frames[i].descriptors + 32 * (j + 1));
+					lm->observers.push_back(pt >= 0 ? ba.observers[static_cast<std::size_t>(pt)]
+					                                : (1u << i));
 				}
 	}
 	else
@@ -370,11 +398,12 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 			for (std::size_t j = 0; j < frames[i].n; j++)
 			{
 				const Eigen::Vector3f p =
-					(T[i] * Eigen::Vector3d(frames[i].xyz[3 * j], frames[i].xyz[3 * j + 1], frames[i].xyz[3 * j + 2]))
-						.cast<float>();
+				    (T[i] * Eigen::Vector3d(frames[i].xyz[3 * j], frames[i].xyz[3 * j + 1],
+				                            frames[i].xyz[3 * j + 2]))
+				        .cast<float>();
 				lm->xyz.insert(lm->xyz.end(), {p.x(), p.y(), p.z()});
-				lm->descriptors.insert(
-					lm->descriptors.end(), frames[i].descriptors + 32 * j, frames[i].descriptors + 32 * (j + 1));
+				lm->descriptors.insert(lm->descriptors.end(), frames[i].descriptors + 32 * j,
+				                       frames[i].descriptors + 32 * (j + 1));
 				lm->observers.push_back(1u << i);
 			}
 	}
@@ -384,7 +413,8 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	for (std::size_t i = 0; i < ids.size(); i++)
 	{
 		const auto it = clouds_.find(ids[i]);
-		if (it == clouds_.end()) continue;
+		if (it == clouds_.end())
+			continue;
 		const Eigen::Isometry3f Tf = T[i].cast<float>();
 		for (const auto& q : it->second)
 		{
@@ -404,10 +434,12 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 
 	// Paper, Algorithm 1: the local map enters the local-map graph with its labels.
 	if (lastLocalMap_)
-		map_.graph.add(*lastLocalMap_, lm->id, LocalMapGraph::EdgeKind::Sequential, lm->createdStamp);
+		map_.graph.add(*lastLocalMap_, lm->id, LocalMapGraph::EdgeKind::Sequential,
+		               lm->createdStamp);
 	for (const auto other : pendingRelocs_)
 		if (map_.localMaps.count(other))
-			map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Relocalization, lm->createdStamp);
+			map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Relocalization,
+			               lm->createdStamp);
 	for (const auto other : pendingLoops_)
 	{
 		map_.graph.add(other, lm->id, LocalMapGraph::EdgeKind::Loop, lm->updatedStamp);
@@ -416,7 +448,8 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		// searchable. One entry a place keeps the database and the query time flat on a route
 		// driven again and again; the older image stays in the store, so its entry can be made
 		// again.
-		if (cullOnLoop_ && !indexReplaced_ && !map_.localMaps.at(other)->online) up.replaced.emplace_back(other, lm->id);
+		if (cullOnLoop_ && !indexReplaced_ && !map_.localMaps.at(other)->online)
+			up.replaced.emplace_back(other, lm->id);
 	}
 	pendingLoops_.clear();
 	pendingRelocs_.clear();
@@ -425,9 +458,9 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	up.finished.push_back(std::move(fin));
 	cull();
 	MRPT_LOG_DEBUG_FMT(
-		"local map %llu: %zu keyframes, %zu points, BA %s (%zu tracks, rms %.3f -> %.3f m)",
-		static_cast<unsigned long long>(lm->id), ids.size(), lm->points(), ba.ran ? "ran" : "skipped", ba.tracks,
-		ba.initialRms_m, ba.finalRms_m);
+	    "local map %llu: %zu keyframes, %zu points, BA %s (%zu tracks, rms %.3f -> %.3f m)",
+	    static_cast<unsigned long long>(lm->id), ids.size(), lm->points(),
+	    ba.ran ? "ran" : "skipped", ba.tracks, ba.initialRms_m, ba.finalRms_m);
 
 	// Consecutive local maps share the last keyframe: it stays open, with its features.
 	open_.clear();
@@ -436,15 +469,18 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		open_.push_back(ids.back());
 		openSharesFirst_ = true;
 		lastLocalMap_ = lm->id;
-		for (std::size_t i = 0; i + 1 < ids.size(); i++) release(ids[i]);
+		for (std::size_t i = 0; i + 1 < ids.size(); i++)
+			release(ids[i]);
 	}
 	else
 	{
 		openSharesFirst_ = false;
-		if (continues) lastLocalMap_ = lm->id;
+		if (continues)
+			lastLocalMap_ = lm->id;
 		else
 			lastLocalMap_.reset();
-		for (const auto id : ids) release(id);
+		for (const auto id : ids)
+			release(id);
 	}
 }
 
@@ -468,9 +504,9 @@ void LocalMapManager::loadMap(const std::string& dir)
 	pendingRelocs_.clear();
 	lastLocalMap_.reset();
 	openSharesFirst_ = false;
-	MRPT_LOG_INFO_FMT(
-		"map %s: %zu sessions, %zu keyframes, %zu local maps", dir.c_str(), static_cast<std::size_t>(session_),
-		map_.keyframes.size(), map_.localMaps.size());
+	MRPT_LOG_INFO_FMT("map %s: %zu sessions, %zu keyframes, %zu local maps", dir.c_str(),
+	                  static_cast<std::size_t>(session_), map_.keyframes.size(),
+	                  map_.localMaps.size());
 }
 
 void LocalMapManager::describeSession(const SessionRecord& session)
@@ -480,17 +516,20 @@ void LocalMapManager::describeSession(const SessionRecord& session)
 	map_.sessionRecords[session_] = r;
 }
 
-MapManager::Added LocalMapManager::addMap(
-	const Map& other, const std::map<uint64_t, mrpt::poses::CPose3D>& poses,
-	const std::vector<std::pair<uint64_t, uint64_t>>& links)
+MapManager::Added LocalMapManager::addMap(const Map& other,
+                                          const std::map<uint64_t, mrpt::poses::CPose3D>& poses,
+                                          const std::vector<std::pair<uint64_t, uint64_t>>& links)
 {
 	Added out;
 	// The other map's sessions, keyframes and local maps follow this map's, in their order.
 	const uint32_t firstSession = session_;
-	for (uint32_t s = 0; s < other.sessions; s++) out.sessionIds[s] = firstSession + s;
+	for (uint32_t s = 0; s < other.sessions; s++)
+		out.sessionIds[s] = firstSession + s;
 	uint64_t nextKf = map_.nextKeyframeId(), nextLm = map_.nextLocalMapId();
-	for (const auto& [id, k] : other.keyframes) out.keyframeIds[id] = nextKf++;
-	for (const auto& [id, lm] : other.localMaps) out.localMapIds[id] = nextLm++;
+	for (const auto& [id, k] : other.keyframes)
+		out.keyframeIds[id] = nextKf++;
+	for (const auto& [id, lm] : other.localMaps)
+		out.localMapIds[id] = nextLm++;
 	for (const auto& [s, r] : other.sessionRecords)
 	{
 		auto copy = r;
@@ -500,7 +539,8 @@ MapManager::Added LocalMapManager::addMap(
 	for (const auto& [id, k] : other.keyframes)
 	{
 		const auto pose = poses.find(id);
-		if (pose == poses.end()) throw std::runtime_error("merge: keyframe " + std::to_string(id) + " has no pose");
+		if (pose == poses.end())
+			throw std::runtime_error("merge: keyframe " + std::to_string(id) + " has no pose");
 		auto copy = std::make_shared<Keyframe>(*k);
 		copy->id = out.keyframeIds.at(id);
 		copy->session = out.sessionIds.at(k->session);
@@ -514,7 +554,8 @@ MapManager::Added LocalMapManager::addMap(
 		auto lm = std::make_shared<LocalMap>(*other.data(id));
 		lm->id = out.localMapIds.at(id);
 		lm->session = out.sessionIds.at(lm->session);
-		for (auto& k : lm->keyframes) k = out.keyframeIds.at(k);
+		for (auto& k : lm->keyframes)
+			k = out.keyframeIds.at(k);
 		lm->online = true;
 		lastStamp = std::max(lastStamp, lm->updatedStamp);
 		// The place index needs the image's words: the image is kept losslessly, so they are
@@ -530,14 +571,15 @@ MapManager::Added LocalMapManager::addMap(
 		map_.graph.add(out.localMapIds.at(e.from), out.localMapIds.at(e.to), e.kind, e.stamp);
 	for (const auto& [mine, theirs] : links)
 	{
-		if (!map_.localMaps.count(mine)) throw std::runtime_error("merge: no local map " + std::to_string(mine));
-		map_.graph.add(mine, out.localMapIds.at(theirs), LocalMapGraph::EdgeKind::Relocalization, lastStamp);
+		if (!map_.localMaps.count(mine))
+			throw std::runtime_error("merge: no local map " + std::to_string(mine));
+		map_.graph.add(mine, out.localMapIds.at(theirs), LocalMapGraph::EdgeKind::Relocalization,
+		               lastStamp);
 	}
 	map_.sessions = firstSession + other.sessions;
 	session_ = map_.sessions;
-	MRPT_LOG_INFO_FMT(
-		"merged %zu keyframes and %zu local maps of %u sessions", other.keyframes.size(), other.localMaps.size(),
-		other.sessions);
+	MRPT_LOG_INFO_FMT("merged %zu keyframes and %zu local maps of %u sessions",
+	                  other.keyframes.size(), other.localMaps.size(), other.sessions);
 	return out;
 }
 
@@ -546,27 +588,36 @@ std::vector<uint8_t> LocalMapManager::wordsOfImage(const cv::Mat& image)
 	std::vector<cv::KeyPoint> kps;
 	cv::Mat desc;
 	orb_->extract(image, kps, desc);
-	return desc.rows > 0 ? std::vector<uint8_t>(desc.datastart, desc.dataend) : std::vector<uint8_t>{};
+	return desc.rows > 0 ? std::vector<uint8_t>(desc.datastart, desc.dataend)
+	                     : std::vector<uint8_t>{};
 }
 
 std::vector<uint8_t> LocalMapManager::wordsOf(const LocalMap& lm)
 {
-	if (lm.imagePng.empty()) return {};
+	if (lm.imagePng.empty())
+		return {};
 	// The image is kept losslessly: its words are those the local map had when it was made.
 	const cv::Mat img = cv::imdecode(lm.imagePng, cv::IMREAD_GRAYSCALE);
-	if (img.empty()) throw std::runtime_error("the image of local map " + std::to_string(lm.id) + " cannot be decoded");
+	if (img.empty())
+		throw std::runtime_error("the image of local map " + std::to_string(lm.id) +
+		                         " cannot be decoded");
 	return wordsOfImage(img);
 }
 
-std::vector<uint8_t> LocalMapManager::imageDescriptors(uint64_t localMap) { return wordsOf(*map_.data(localMap)); }
+std::vector<uint8_t> LocalMapManager::imageDescriptors(uint64_t localMap)
+{
+	return wordsOf(*map_.data(localMap));
+}
 
 std::size_t LocalMapManager::removeLocalMaps(const std::set<uint64_t>& ids)
 {
 	for (const auto id : ids)
 	{
 		const auto it = map_.localMaps.find(id);
-		if (it == map_.localMaps.end()) throw std::runtime_error("no local map " + std::to_string(id));
-		if (std::find(open_.begin(), open_.end(), it->second->anchor()) != open_.end() || lastLocalMap_ == id)
+		if (it == map_.localMaps.end())
+			throw std::runtime_error("no local map " + std::to_string(id));
+		if (std::find(open_.begin(), open_.end(), it->second->anchor()) != open_.end() ||
+		    lastLocalMap_ == id)
 			throw std::runtime_error("local map " + std::to_string(id) + " is being built on");
 		map_.localMaps.erase(it);
 		routeAt_.erase(id);
@@ -578,12 +629,12 @@ std::size_t LocalMapManager::removeLocalMaps(const std::set<uint64_t>& ids)
 		map_.saved.erase(id);  // its file in the map's store goes when the map is saved
 	}
 	auto& edges = map_.graph.edges;
-	edges.erase(
-		std::remove_if(
-			edges.begin(), edges.end(), [&](const auto& e) { return ids.count(e.from) || ids.count(e.to); }),
-		edges.end());
+	edges.erase(std::remove_if(edges.begin(), edges.end(),
+	                           [&](const auto& e) { return ids.count(e.from) || ids.count(e.to); }),
+	            edges.end());
 	std::set<uint64_t> held;
-	for (const auto& [id, lm] : map_.localMaps) held.insert(lm->keyframes.begin(), lm->keyframes.end());
+	for (const auto& [id, lm] : map_.localMaps)
+		held.insert(lm->keyframes.begin(), lm->keyframes.end());
 	std::size_t removed = 0;
 	for (auto it = map_.keyframes.begin(); it != map_.keyframes.end();)
 		if (!held.count(it->first) && !clouds_.count(it->first))
@@ -597,16 +648,17 @@ std::size_t LocalMapManager::removeLocalMaps(const std::set<uint64_t>& ids)
 	return removed;
 }
 
-void LocalMapManager::saveMap(
-	const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
-	const std::vector<uint8_t>& placeIndex)
+void LocalMapManager::saveMap(const std::string& dir, const PoseView& poses,
+                              const std::string& placeIndexClass,
+                              const std::vector<uint8_t>& placeIndex)
 {
 	map_.placeIndexClass = placeIndexClass;
 	map_.placeIndex = placeIndex;
 	// A session that added nothing (a prune, a merge, a run that saw no keyframe) is no
 	// session of the map.
 	bool added = false;
-	for (const auto& [id, k] : map_.keyframes) added = added || k->session == session_;
+	for (const auto& [id, k] : map_.keyframes)
+		added = added || k->session == session_;
 	const uint32_t sessions = map_.sessions;
 	std::optional<SessionRecord> record;
 	// A session that added nothing (prune, merge) keeps what the map was saved with online.
@@ -620,9 +672,11 @@ void LocalMapManager::saveMap(
 			map_.sessionRecords.erase(it);
 		}
 	}
-	auto restore = [&] {
+	auto restore = [&]
+	{
 		map_.sessions = sessions;
-		if (record) map_.sessionRecords[session_] = *record;
+		if (record)
+			map_.sessionRecords[session_] = *record;
 	};
 	try
 	{
@@ -637,7 +691,6 @@ void LocalMapManager::saveMap(
 	restore();
 	map_.placeIndex.clear();
 	map_.placeIndex.shrink_to_fit();
-	MRPT_LOG_INFO_FMT(
-		"map saved to %s: %zu keyframes, %zu local maps", mapFilePath(dir).c_str(), map_.keyframes.size(),
-		map_.localMaps.size());
+	MRPT_LOG_INFO_FMT("map saved to %s: %zu keyframes, %zu local maps", mapFilePath(dir).c_str(),
+	                  map_.keyframes.size(), map_.localMaps.size());
 }

@@ -34,10 +34,11 @@ class OrbOdometry : public Odometry
 		Eigen::Vector3d groundN = Eigen::Vector3d::UnitZ();
 		double groundD = 0;
 	};
-	Eigen::Isometry3d alignGround(const Eigen::Isometry3d& T_ref_cur, const Frame& ref, const Frame& cur) const;
+	Eigen::Isometry3d alignGround(const Eigen::Isometry3d& T_ref_cur, const Frame& ref,
+	                              const Frame& cur) const;
 	void extract(const Scan& scan, const RasterFrame& raster, Frame& f);
-	features::RigidResult track(
-		const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed);
+	features::RigidResult track(const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior,
+	                            bool gated, std::size_t seed);
 	Keyframe::Ptr keyframeOf(const Frame& f) const;
 
 	features::OrbParams orbParams_;
@@ -128,21 +129,25 @@ void OrbOdometry::extract(const Scan& scan, const RasterFrame& raster, Frame& f)
 	for (int i = 0; i < static_cast<int>(kps.size()); i++)
 	{
 		const int32_t idx = raster::pointAtPixel(raster, kps[i].pt.x, kps[i].pt.y, 1);
-		if (idx < 0) continue;
+		if (idx < 0)
+			continue;
 		const auto& q = scan.points[static_cast<std::size_t>(idx)];
 		f.kps.push_back(kps[i]);
 		f.pts.emplace_back(q.x, q.y, q.z);
 		keep.push_back(i);
 	}
 	f.groundValid = raster.groundValid;
-	f.groundN = Eigen::Vector3d(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
+	f.groundN =
+	    Eigen::Vector3d(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
 	f.groundD = raster.groundD;
 	f.desc.create(static_cast<int>(keep.size()), 32, CV_8U);
-	for (int r = 0; r < static_cast<int>(keep.size()); r++) desc.row(keep[r]).copyTo(f.desc.row(r));
+	for (int r = 0; r < static_cast<int>(keep.size()); r++)
+		desc.row(keep[r]).copyTo(f.desc.row(r));
 }
 
-features::RigidResult OrbOdometry::track(
-	const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior, bool gated, std::size_t seed)
+features::RigidResult OrbOdometry::track(const Frame& ref, const Frame& cur,
+                                         const Eigen::Isometry3d& prior, bool gated,
+                                         std::size_t seed)
 {
 	// Keyframe points predicted into the current frame, for the gate.
 	std::vector<Eigen::Vector3f> predicted;
@@ -151,12 +156,13 @@ features::RigidResult OrbOdometry::track(
 	{
 		const Eigen::Isometry3f inv = prior.inverse().cast<float>();
 		predicted.reserve(ref.pts.size());
-		for (const auto& q : ref.pts) predicted.push_back(inv * q);
+		for (const auto& q : ref.pts)
+			predicted.push_back(inv * q);
 	}
 	else
 		mp.gateRadius_m = 0;
-	const auto matches = features::matchMutual(
-		cur.desc, ref.desc, mp, gated ? &cur.pts : nullptr, gated ? &predicted : nullptr);
+	const auto matches = features::matchMutual(cur.desc, ref.desc, mp, gated ? &cur.pts : nullptr,
+	                                           gated ? &predicted : nullptr);
 	std::vector<Eigen::Vector3f> p, q;
 	p.reserve(matches.size());
 	q.reserve(matches.size());
@@ -165,24 +171,28 @@ features::RigidResult OrbOdometry::track(
 		p.push_back(cur.pts[m.a]);
 		q.push_back(ref.pts[m.b]);
 	}
-	auto r = features::ransacRigid(p, q, ransac_, static_cast<uint32_t>(seed * 2 + (gated ? 0 : 1)));
+	auto r =
+	    features::ransacRigid(p, q, ransac_, static_cast<uint32_t>(seed * 2 + (gated ? 0 : 1)));
 	// Express inlier indices in the current frame's feature numbering.
-	for (auto& i : r.inliers) i = matches[i].a;
+	for (auto& i : r.inliers)
+		i = matches[i].a;
 	return r;
 }
 
-Eigen::Isometry3d OrbOdometry::alignGround(
-	const Eigen::Isometry3d& T, const Frame& ref, const Frame& cur) const
+Eigen::Isometry3d OrbOdometry::alignGround(const Eigen::Isometry3d& T, const Frame& ref,
+                                           const Frame& cur) const
 {
 	// Features on an elevation image pin x, y and yaw well; the heights of the points behind
 	// the pixels are noisy, and so are z, roll and pitch. The ground planes of both scans pin
 	// those three (as LeGO-LOAM's two-step fit does): rotate the estimate by the smallest
 	// rotation that maps the current ground normal onto the reference's, then move it along
 	// the normal so that both planes coincide.
-	if (!ref.groundValid || !cur.groundValid) return T;
+	if (!ref.groundValid || !cur.groundValid)
+		return T;
 	const Eigen::Vector3d n1 = T.linear() * cur.groundN;
 	const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(n1, ref.groundN);
-	if (Eigen::AngleAxisd(q).angle() > groundMaxCorrection_deg_ * M_PI / 180) return T;  // a slope change
+	if (Eigen::AngleAxisd(q).angle() > groundMaxCorrection_deg_ * M_PI / 180)
+		return T;  // a slope change
 	Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
 	out.linear() = q.toRotationMatrix() * T.linear();
 	const Eigen::Vector3d t = q * T.translation();
@@ -209,7 +219,8 @@ Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const
 		k->angle[i] = f.kps[i].angle;
 		k->response[i] = f.kps[i].response;
 		k->octave[i] = static_cast<uint8_t>(f.kps[i].octave);
-		for (int c = 0; c < 3; c++) k->xyz[3 * i + c] = f.pts[i][c];
+		for (int c = 0; c < 3; c++)
+			k->xyz[3 * i + c] = f.pts[i][c];
 		std::memcpy(&k->descriptors[32 * i], f.desc.ptr<uint8_t>(static_cast<int>(i)), 32);
 	}
 	return k;
@@ -219,8 +230,8 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 {
 	if (!raster)
 		throw std::runtime_error(
-			"rasterslam::OrbOdometry needs elevation images: configure a rasterizer (e.g. "
-			"rasterslam::ElevationRasterizer)");
+		    "rasterslam::OrbOdometry needs elevation images: configure a rasterizer (e.g. "
+		    "rasterslam::ElevationRasterizer)");
 	OdometryResult r;
 	auto cur = std::make_unique<Frame>();
 	extract(scan, *raster, *cur);
@@ -237,9 +248,11 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		return r;
 	}
 
-	const Eigen::Isometry3d prior = T_kf_prev_ * (constantVelocity_ ? velocity_ : Eigen::Isometry3d::Identity());
+	const Eigen::Isometry3d prior =
+	    T_kf_prev_ * (constantVelocity_ ? velocity_ : Eigen::Isometry3d::Identity());
 	auto est = track(*kf_, *cur, prior, true, scan.index);
-	if (!est.ok) est = track(*kf_, *cur, prior, false, scan.index);  // the gate may have been wrong
+	if (!est.ok)
+		est = track(*kf_, *cur, prior, false, scan.index);  // the gate may have been wrong
 	bool bridged = false;
 	if ((!est.ok || static_cast<int>(est.inliers.size()) < weakInliers_) && prev_)
 	{
@@ -266,7 +279,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	}
 	else
 		r.message = "only " + std::to_string(est.inliers.size()) + " inliers among " +
-			std::to_string(cur->kps.size()) + " features";
+		            std::to_string(cur->kps.size()) + " features";
 
 	++sinceKf_;
 	if (ok)
@@ -274,7 +287,8 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		T_kf_curr = alignGround_ && !bridged ? alignGround(est.T, *kf_, *cur) : est.T;
 		r.status = TrackingStatus::Ok;
 		r.inliers = est.inliers.size();
-		r.information = mrpt::math::CMatrixDouble66(features::pointToPointInformation(cur->pts, est.inliers, sigma_m_));
+		r.information = mrpt::math::CMatrixDouble66(
+		    features::pointToPointInformation(cur->pts, est.inliers, sigma_m_));
 	}
 	else
 	{
@@ -285,7 +299,8 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	r.T_kf_curr = toPose(T_kf_curr);
 	const Eigen::Isometry3d T_prev_curr = T_kf_prev_.inverse() * T_kf_curr;
 	r.T_prev_curr = toPose(T_prev_curr);
-	if (ok) velocity_ = T_prev_curr;
+	if (ok)
+		velocity_ = T_prev_curr;
 
 	// Paper: a keyframe when at least 5 frames have passed and at least 100 points are shared
 	// with it. A weak track that goes on too long, or a lost one, also starts a new keyframe
@@ -295,8 +310,8 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	// nothing to match): the old keyframe and previous frame stay.
 	const bool shared = !bridged && static_cast<int>(r.inliers) >= kfMinShared_;
 	const bool usable = static_cast<int>(cur->kps.size()) >= ransac_.minInliers;
-	r.keyframe = usable &&
-		((sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ || !ok || bridged);
+	r.keyframe = usable && ((sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ ||
+	                        !ok || bridged);
 	if (!usable)
 	{
 		// Keep tracking against the keyframe; the prior stands in for this frame, and the

@@ -27,8 +27,8 @@ using FeatureVector = std::map<NodeId, std::vector<uint32_t>>;
 
 struct TrainParams
 {
-	int branching = 10;  //!< k
-	int levels = 4;  //!< L: up to k^L words
+	int branching = 10;      //!< k
+	int levels = 4;          //!< L: up to k^L words
 	int maxIterations = 10;  //!< k-medians iterations per node
 	uint32_t seed = 1;
 };
@@ -50,9 +50,8 @@ class Vocabulary : public mrpt::serialization::CSerializable
 	WordId wordOf(const Descriptor& d) const;
 	/** TF-IDF weighted, L1-normalized bag of words of an image; with `fv`, also the direct
 	 *  index at `levelsUp` levels above the leaves. */
-	void transform(
-		const std::vector<Descriptor>& features, BowVector& bow, FeatureVector* fv = nullptr,
-		int levelsUp = 2) const;
+	void transform(const std::vector<Descriptor>& features, BowVector& bow,
+	               FeatureVector* fv = nullptr, int levelsUp = 2) const;
 
 	/** DBoW2's L1 score of two L1-normalized vectors: 1 - 0.5 * |a - b|_1, in [0, 1]
 	 *  (1 for identical vectors, 0 for vectors with no word in common). */
@@ -79,9 +78,9 @@ class Vocabulary : public mrpt::serialization::CSerializable
 
 	int k_ = 0, L_ = 0;
 	uint32_t trainingImages_ = 0;
-	std::vector<Node> nodes_;  //!< nodes_[0] is the root
+	std::vector<Node> nodes_;       //!< nodes_[0] is the root
 	std::vector<NodeId> wordNode_;  //!< word id -> leaf node
-	std::vector<double> idf_;  //!< word id -> IDF weight
+	std::vector<double> idf_;       //!< word id -> IDF weight
 };
 
 /** An image database: an inverted index from words to (entry, weight), entries that can be

@@ -37,8 +37,8 @@ class ParamReader
 	bool getBool(const std::string& key, bool def);
 	std::string getString(const std::string& key, const std::string& def);
 	/** A string that must be one of `allowed`. */
-	std::string getChoice(
-		const std::string& key, const std::string& def, const std::vector<std::string>& allowed);
+	std::string getChoice(const std::string& key, const std::string& def,
+	                      const std::vector<std::string>& allowed);
 	std::vector<double> getDoubles(const std::string& key, const std::vector<double>& def);
 	/** A file path; a relative one is taken relative to the config file's folder. */
 	std::string getPath(const std::string& key, const std::string& def);

@@ -28,7 +28,7 @@ struct ScanRecord
 	TrackingStatus status = TrackingStatus::Initializing;
 	std::size_t inliers = 0;
 	bool keyframe = false;
-	bool late = false;  //!< --realtime: started after its due time
+	bool late = false;                 //!< --realtime: started after its due time
 	mrpt::graphs::TNodeID kfNode = 0;  //!< keyframe the scan is attached to
 	// Poses as plain TPose3D (48 bytes, against 136 for a CPose3D with its cached rotation):
 	// a record is kept for every scan of a run, hours of them in a lifelong one.
@@ -65,20 +65,21 @@ struct RunResult
 	std::size_t keyframes = 0, lost = 0, late = 0, loopEdges = 0, skippedBadScans = 0;
 	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
 	std::size_t relocalized = 0, relocalizationFailures = 0;
-	std::size_t loopsToPriorMap = 0;  //!< loops found to a --map-in map's keyframes
+	std::size_t loopsToPriorMap = 0;    //!< loops found to a --map-in map's keyframes
 	std::size_t priorMapLoopEdges = 0;  //!< of those, made graph edges (after the anchoring)
 	/** --map-in: whether the session was located (anchored) in the prior map, and how many
 	 *  relocalization hits in earlier sessions it had. */
 	bool localized = false;
 	std::size_t anchorHits = 0;
-	std::size_t localMaps = 0;  //!< local maps finished in this run
-	std::size_t localBaRuns = 0;  //!< local maps refined by local BA
+	std::size_t localMaps = 0;          //!< local maps finished in this run
+	std::size_t localBaRuns = 0;        //!< local maps refined by local BA
 	std::size_t localMapsReplaced = 0;  //!< replaced on a revisit, their place-index entry dropped
-	std::size_t onlineOptimizations = 0;  //!< pose-graph optimizations during the run
-	double onlineOptimization_ms = 0;  //!< their total time
+	std::size_t onlineOptimizations = 0;      //!< pose-graph optimizations during the run
+	double onlineOptimization_ms = 0;         //!< their total time
 	std::size_t onlineOptimizationNodes = 0;  //!< nodes they had, summed (moving and fixed)
-	double memoryTrim_ms = 0;  //!< time spent returning freed heap to the system
-	std::size_t corruptedLoops = 0;  //!< loop edges replaced by wrong ones (engine.test_corrupt_loops)
+	double memoryTrim_ms = 0;                 //!< time spent returning freed heap to the system
+	std::size_t corruptedLoops =
+	    0;  //!< loop edges replaced by wrong ones (engine.test_corrupt_loops)
 	/** Edges that may be outliers (loop, relocalization), for the robust loss. */
 	EdgeSet uncertainEdges;
 	OptimizerResult optimizer;  //!< the final optimization
@@ -97,10 +98,10 @@ struct RunResult
 /** What Engine::mergeMap() found and did. */
 struct MergeReport
 {
-	std::size_t localMaps = 0;  //!< local maps of the map merged in
+	std::size_t localMaps = 0;       //!< local maps of the map merged in
 	std::size_t keyframesTried = 0;  //!< its keyframes, each located with the points it saw
-	std::size_t located = 0;  //!< of those, found in the loaded map
-	std::size_t agreeing = 0;  //!< of those, agreeing on where the other map lies (linked)
+	std::size_t located = 0;         //!< of those, found in the loaded map
+	std::size_t agreeing = 0;        //!< of those, agreeing on where the other map lies (linked)
 	/** The other map's frame in the loaded one's, from the agreeing hits (before the
 	 *  optimization). */
 	mrpt::poses::CPose3D T_this_other;
@@ -154,9 +155,9 @@ class Engine : public mrpt::system::COutputLogger
 	void loadMap(const std::string& dir);
 	/** Adds a map built separately (saved in `dir`) to the loaded one: each of its
 	 *  keyframes is located in the loaded map with no pose prior (with the points it saw in its
-	 *  local map); at least engine.anchor_min_agreeing of them must agree on where the other map lies (else it
-	 *  throws: no overlap). The other map's keyframes are moved there, tied by their relative
-	 *  poses and the agreeing hits, and optimized with the loaded map fixed. Save with
+	 *  local map); at least engine.anchor_min_agreeing of them must agree on where the other map
+	 * lies (else it throws: no overlap). The other map's keyframes are moved there, tied by their
+	 * relative poses and the agreeing hits, and optimized with the loaded map fixed. Save with
 	 *  saveMap(dir, {}). Needs a map_manager, a loop_detector and an optimizer. */
 	MergeReport mergeMap(const std::string& dir);
 	/** Drops local maps of the loaded map (`map prune`) with their place-index entries and
@@ -172,10 +173,10 @@ class Engine : public mrpt::system::COutputLogger
 	/** Two anchorings agree: their difference `d` (where the vehicle is) is within
 	 *  engine.anchor_agree_m and anchor_agree_deg. */
 	bool anchorsAgree(const mrpt::poses::CPose3D& d) const;
-	mrpt::graphs::CNetworkOfPoses3DInf::edge_t rawlogOdometryEdge(const mrpt::poses::CPose3DPDFGaussian& odo) const;
-	Plugin::Ptr makeRole(
-		const mrpt::containers::yaml& cfg, const std::string& section,
-		const mrpt::rtti::TRuntimeClassId* role, bool required);
+	mrpt::graphs::CNetworkOfPoses3DInf::edge_t rawlogOdometryEdge(
+	    const mrpt::poses::CPose3DPDFGaussian& odo) const;
+	Plugin::Ptr makeRole(const mrpt::containers::yaml& cfg, const std::string& section,
+	                     const mrpt::rtti::TRuntimeClassId* role, bool required);
 
 	std::string source_;
 	mrpt::containers::yaml inForce_ = mrpt::containers::yaml::Map();

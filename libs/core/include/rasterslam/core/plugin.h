@@ -8,8 +8,8 @@
 #include <mrpt/rtti/CObject.h>
 #include <mrpt/system/COutputLogger.h>
 #include <rasterslam/core/config.h>
-#include <rasterslam/map/map.h>
 #include <rasterslam/core/types.h>
+#include <rasterslam/map/map.h>
 
 #include <map>
 #include <optional>
@@ -107,7 +107,7 @@ struct KeyframeInfo
 	std::size_t scanIndex = 0;
 	double stamp = 0;
 	mrpt::poses::CPose3D pose;  //!< current estimate in the map frame
-	Keyframe::Ptr data;  //!< features seen there, when the odometry provides them
+	Keyframe::Ptr data;         //!< features seen there, when the odometry provides them
 	/** Tracking was lost since the previous keyframe and not recovered: the two are not
 	 *  linked by a trustworthy motion (a local map must not span them). */
 	bool afterLoss = false;
@@ -143,8 +143,8 @@ class MapManager : public Plugin
 	DEFINE_VIRTUAL_MRPT_OBJECT(MapManager)
    public:
 	std::string role() const override { return "map_manager"; }
-	virtual MappingUpdate addKeyframe(
-		const KeyframeInfo& kf, const Scan& scan, const RasterFrame* raster, const PoseView& poses) = 0;
+	virtual MappingUpdate addKeyframe(const KeyframeInfo& kf, const Scan& scan,
+	                                  const RasterFrame* raster, const PoseView& poses) = 0;
 	/** Called once at the end of a run: finish what is open. */
 	virtual MappingUpdate finish(const PoseView& poses) = 0;
 	/** An accepted loop between two keyframes (the engine made it a graph edge). */
@@ -164,9 +164,9 @@ class MapManager : public Plugin
 	 *  map's frame, keyed by the other map's keyframe ids), local maps and graph, renumbered
 	 *  after this map's, and a relocalization edge for each (this map's local map, the
 	 *  other's) in `links`. */
-	virtual Added addMap(
-		const Map& /*other*/, const std::map<uint64_t, mrpt::poses::CPose3D>& /*poses*/,
-		const std::vector<std::pair<uint64_t, uint64_t>>& /*links*/)
+	virtual Added addMap(const Map& /*other*/,
+	                     const std::map<uint64_t, mrpt::poses::CPose3D>& /*poses*/,
+	                     const std::vector<std::pair<uint64_t, uint64_t>>& /*links*/)
 	{
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot merge maps");
 	}
@@ -176,14 +176,15 @@ class MapManager : public Plugin
 	 *  remaining local map holds. Returns the keyframes removed. */
 	virtual std::size_t removeLocalMaps(const std::set<uint64_t>& /*localMaps*/)
 	{
-		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot remove local maps");
+		throw std::runtime_error(std::string(GetRuntimeClass()->className) +
+		                         " cannot remove local maps");
 	}
 	/** Replaces the map with one loaded from disk; the next session continues its ids. */
 	virtual void loadMap(const std::string& dir) = 0;
 	/** Writes the map (open local map included) with the given poses and place index. */
-	virtual void saveMap(
-		const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
-		const std::vector<uint8_t>& placeIndex) = 0;
+	virtual void saveMap(const std::string& dir, const PoseView& poses,
+	                     const std::string& placeIndexClass,
+	                     const std::vector<uint8_t>& placeIndex) = 0;
 };
 
 /** A constraint found by a loop detector: pose of `to` in the frame of `from`. */
@@ -202,12 +203,12 @@ struct LoopDecision
 {
 	double queryStamp = 0;
 	double candidateStamp = -1;  //!< stamp of the matched keyframe's scan, -1 if none
-	uint64_t candidateMap = 0;  //!< the candidate local map
-	double score = 0;  //!< normalized BOW score
+	uint64_t candidateMap = 0;   //!< the candidate local map
+	double score = 0;            //!< normalized BOW score
 	std::size_t inliers = 0;
-	bool verified = false;  //!< the geometric check passed
-	bool accepted = false;  //!< it became a loop edge
-	std::string reason;  //!< one word: ok, score, inliers, ...
+	bool verified = false;                   //!< the geometric check passed
+	bool accepted = false;                   //!< it became a loop edge
+	std::string reason;                      //!< one word: ok, score, inliers, ...
 	mrpt::poses::CPose3D T_candidate_query;  //!< query in the matched keyframe's frame
 };
 
@@ -221,7 +222,7 @@ struct RelocalizationResult
 	double keyframeStamp = -1;
 	double score = 0;
 	std::size_t inliers = 0;
-	mrpt::poses::CPose3D pose;  //!< of the scan, in the map frame
+	mrpt::poses::CPose3D pose;          //!< of the scan, in the map frame
 	mrpt::poses::CPose3D keyframePose;  //!< of the matched keyframe, in the map frame
 };
 
@@ -235,23 +236,27 @@ class LoopDetector : public Plugin
 	std::string role() const override { return "loop_detector"; }
 	/** A finished local map enters the place index. */
 	virtual void index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors) = 0;
-	virtual std::vector<LoopConstraint> detect(
-		const KeyframeInfo& kf, const Map& map, const PoseView& poses) = 0;
+	virtual std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map& map,
+	                                           const PoseView& poses) = 0;
 	/** Locates a scan in the map with no pose prior. */
-	virtual RelocalizationResult relocalize(
-		const Scan& scan, const RasterFrame& raster, const Map& map, const PoseView& poses) = 0;
+	virtual RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster,
+	                                        const Map& map, const PoseView& poses) = 0;
 	/** Locates a local map of another map (its points, in its anchor's frame; only those its
 	 *  keyframe number `onlyKeyframe` saw, when >= 0) with no pose prior; the result's pose
 	 *  is that of its anchor keyframe in `map`'s frame. */
-	virtual RelocalizationResult locate(
-		const LocalMap& query, const Map& map, const PoseView& poses, int onlyKeyframe = -1)
+	virtual RelocalizationResult locate(const LocalMap& query, const Map& map,
+	                                    const PoseView& poses, int onlyKeyframe = -1)
 	{
 		(void)query, (void)map, (void)poses, (void)onlyKeyframe;
-		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot locate local maps");
+		throw std::runtime_error(std::string(GetRuntimeClass()->className) +
+		                         " cannot locate local maps");
 	}
 	/** The local maps the place index saved with `map` has entries for (a local map replaced
 	 *  on a revisit has none); nullopt when this detector cannot read that index. */
-	virtual std::optional<std::set<uint64_t>> indexedIn(const Map& /*map*/) const { return std::nullopt; }
+	virtual std::optional<std::set<uint64_t>> indexedIn(const Map& /*map*/) const
+	{
+		return std::nullopt;
+	}
 	/** Whether the place index has an entry for the local map. */
 	virtual bool indexes(uint64_t /*localMap*/) const { return false; }
 	/** A local map leaves the place index now (pruned). Returns whether it was there. */
@@ -293,9 +298,9 @@ class Optimizer : public Plugin
 	/** Optimizes the node poses of `graph` in place; the root node and the nodes in `fixed`
 	 *  (an earlier session's keyframes) stay where they are. `uncertain` names the edges that
 	 *  may be outliers (see EdgeSet). */
-	virtual OptimizerResult optimize(
-		mrpt::graphs::CNetworkOfPoses3DInf& graph, const EdgeSet& uncertain = {},
-		const std::set<mrpt::graphs::TNodeID>& fixed = {}) = 0;
+	virtual OptimizerResult optimize(mrpt::graphs::CNetworkOfPoses3DInf& graph,
+	                                 const EdgeSet& uncertain = {},
+	                                 const std::set<mrpt::graphs::TNodeID>& fixed = {}) = 0;
 };
 
 }  // namespace rasterslam

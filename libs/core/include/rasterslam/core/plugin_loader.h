@@ -4,8 +4,8 @@
 #include <rasterslam/core/plugin.h>
 
 #include <map>
-#include <set>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -15,8 +15,8 @@ namespace rasterslam
 struct PluginClassInfo
 {
 	std::string className;  //!< e.g. "rasterslam::GicpOdometry"
-	std::string role;  //!< e.g. "odometry"
-	std::string module;  //!< path of the .so that registered it ("" if built in)
+	std::string role;       //!< e.g. "odometry"
+	std::string module;     //!< path of the .so that registered it ("" if built in)
 };
 
 /** Loads plugin modules (librasterslam_plugin_*.so) once per process. Search path, in order:

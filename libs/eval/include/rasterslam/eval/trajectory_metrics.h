@@ -3,8 +3,8 @@
 
 #include <rasterslam/io/trajectory_io.h>
 
-#include <string>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace rasterslam::eval
@@ -19,8 +19,8 @@ struct Association
 
 /** By index when `byIndex` (both trajectories must then have the same length, else throws),
  *  otherwise by nearest time stamp within maxDt seconds. */
-Association associate(
-	const Trajectory& gt, const Trajectory& est, bool byIndex, double maxDt = 0.02);
+Association associate(const Trajectory& gt, const Trajectory& est, bool byIndex,
+                      double maxDt = 0.02);
 
 struct AteResult
 {
@@ -32,9 +32,8 @@ struct AteResult
 /** Absolute trajectory error of associated poses after the best SE(3) alignment, or after a
  *  given one (`fixed`: e.g. the alignment of another session of the same map, so that
  *  sessions are judged in one common frame). */
-AteResult computeAte(
-	const Trajectory& gt, const Trajectory& est, const Association& a,
-	const std::optional<Eigen::Isometry3d>& fixed = std::nullopt);
+AteResult computeAte(const Trajectory& gt, const Trajectory& est, const Association& a,
+                     const std::optional<Eigen::Isometry3d>& fixed = std::nullopt);
 
 struct RpeResult
 {
@@ -53,17 +52,17 @@ struct KittiSegmentError
 };
 struct KittiRelativeResult
 {
-	std::size_t count = 0;  //!< number of segments over all lengths
-	double t_err_pct = 0;  //!< mean translation error, % of segment length
+	std::size_t count = 0;       //!< number of segments over all lengths
+	double t_err_pct = 0;        //!< mean translation error, % of segment length
 	double r_err_deg_per_m = 0;  //!< mean rotation error, degrees per metre
 	std::vector<KittiSegmentError> perLength;
 };
 /** The KITTI odometry devkit's metric: for every first frame (every `step` frames) and every
  *  segment length, the error of the relative motion to the first frame whose path distance
  *  from it reaches the length, divided by the length; averaged over all segments. */
-KittiRelativeResult computeKittiRelative(
-	const Trajectory& gt, const Trajectory& est, const Association& a,
-	const std::vector<double>& lengths_m, std::size_t step = 10);
+KittiRelativeResult computeKittiRelative(const Trajectory& gt, const Trajectory& est,
+                                         const Association& a, const std::vector<double>& lengths_m,
+                                         std::size_t step = 10);
 
 /** The devkit's trajectoryDistances over the associated ground-truth poses: element k is the
  *  path length from the first associated pose to the k-th (size = number of pairs). */

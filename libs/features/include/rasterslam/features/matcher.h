@@ -2,10 +2,9 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <opencv2/core.hpp>
-
 #include <cstdint>
 #include <cstring>
+#include <opencv2/core.hpp>
 #include <vector>
 
 namespace rasterslam::features
@@ -13,7 +12,7 @@ namespace rasterslam::features
 struct Match
 {
 	int a = -1, b = -1;  //!< rows of the two descriptor sets
-	int distance = 0;  //!< Hamming distance, bits
+	int distance = 0;    //!< Hamming distance, bits
 };
 
 /** Hamming distance of two 32-byte ORB descriptors. */
@@ -42,9 +41,8 @@ struct MatchParams
 /** Mutual nearest neighbours: a's best is b and b's best is a. When `posA` and `posB` are
  *  given (posA already predicted into B's frame) and gateRadius_m > 0, only pairs closer
  *  than the gate are compared. Deterministic: ties go to the lower index. */
-std::vector<Match> matchMutual(
-	const cv::Mat& descA, const cv::Mat& descB, const MatchParams& p,
-	const std::vector<Eigen::Vector3f>* posA = nullptr,
-	const std::vector<Eigen::Vector3f>* posB = nullptr);
+std::vector<Match> matchMutual(const cv::Mat& descA, const cv::Mat& descB, const MatchParams& p,
+                               const std::vector<Eigen::Vector3f>* posA = nullptr,
+                               const std::vector<Eigen::Vector3f>* posB = nullptr);
 
 }  // namespace rasterslam::features

@@ -4,18 +4,17 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
-
 #include <vector>
 
 namespace rasterslam::features
 {
 struct OrbParams
 {
-	int numFeatures = 2000;  //!< features kept per image
+	int numFeatures = 2000;          //!< features kept per image
 	int gridCols = 8, gridRows = 8;  //!< each cell keeps its share of the strongest
-	int fastThreshold = 20;  //!< first FAST threshold tried...
-	int minFastThreshold = 5;  //!< ...halved down to this while too few corners are found
-	int levels = 3;  // BEV images are metric: scale barely changes between scans
+	int fastThreshold = 20;          //!< first FAST threshold tried...
+	int minFastThreshold = 5;        //!< ...halved down to this while too few corners are found
+	int levels = 3;                  // BEV images are metric: scale barely changes between scans
 	float scaleFactor = 1.2f;
 	int edgeThreshold = 31;
 	int patchSize = 31;
@@ -39,7 +38,7 @@ class OrbExtractor
 
 /** Keeps at most `n` keypoints, each grid cell first taking its share of the strongest, the
  *  remaining places going to the strongest left over. */
-std::vector<cv::KeyPoint> distributeOverGrid(
-	const std::vector<cv::KeyPoint>& kps, int width, int height, int cols, int rows, int n);
+std::vector<cv::KeyPoint> distributeOverGrid(const std::vector<cv::KeyPoint>& kps, int width,
+                                             int height, int cols, int rows, int n);
 
 }  // namespace rasterslam::features

@@ -4,7 +4,6 @@
 #pragma once
 
 #include <Eigen/Geometry>
-
 #include <cstdint>
 #include <vector>
 
@@ -31,21 +30,20 @@ struct RigidResult
 };
 
 /** Closed-form least-squares rigid fit (no scale) of q = T p over the given pairs. */
-bool fitRigid(
-	const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
-	const std::vector<int>& idx, Eigen::Isometry3d& T);
+bool fitRigid(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
+              const std::vector<int>& idx, Eigen::Isometry3d& T);
 
 /** RANSAC rigid fit of q_i = T p_i. The iteration count adapts to the inlier ratio found
  *  so far (never dividing by zero when a hypothesis has no inliers). Deterministic for a
  *  seed. `ok` is false when fewer than minInliers pairs agree. */
-RigidResult ransacRigid(
-	const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
-	const RansacParams& prm, uint32_t seed);
+RigidResult ransacRigid(const std::vector<Eigen::Vector3f>& p,
+                        const std::vector<Eigen::Vector3f>& q, const RansacParams& prm,
+                        uint32_t seed);
 
 /** Information matrix (6x6, MRPT order x y z yaw pitch roll) of a pose estimated from
  *  point-to-point residuals with isotropic noise sigma_m at the given points (in the frame
  *  the pose moves). */
-Eigen::Matrix<double, 6, 6> pointToPointInformation(
-	const std::vector<Eigen::Vector3f>& pts, const std::vector<int>& idx, double sigma_m);
+Eigen::Matrix<double, 6, 6> pointToPointInformation(const std::vector<Eigen::Vector3f>& pts,
+                                                    const std::vector<int>& idx, double sigma_m);
 
 }  // namespace rasterslam::features

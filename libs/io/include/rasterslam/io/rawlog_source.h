@@ -1,10 +1,9 @@
 // Streaming reader of MRPT rawlogs as a ScanSource.
 #pragma once
 
-#include <rasterslam/core/scan_source.h>
-
 #include <mrpt/poses/CPose2D.h>
 #include <mrpt/poses/CPose3DPDFGaussian.h>
+#include <rasterslam/core/scan_source.h>
 
 #include <deque>
 #include <memory>
@@ -74,15 +73,14 @@ class RawlogSource : public ScanSource
 	std::deque<std::pair<int64_t, mrpt::poses::CPose3D>> earlyGt_;  // ground truth seen first
 	void addOdometryIncrement(const mrpt::poses::CPose3DPDFGaussian& inc);
 	std::optional<mrpt::poses::CPose3DPDFGaussian> pendingOdometry_;  // since the last scan
-	std::optional<mrpt::poses::CPose2D> lastOdometryReading_;  // CObservationOdometry
+	std::optional<mrpt::poses::CPose2D> lastOdometryReading_;         // CObservationOdometry
 	bool ended_ = false;
 	std::string stopReason_;
 };
 
 /** Converts one observation to points in the vehicle frame (sensorPose applied); returns
  *  false if the observation is not a 3D scan. `source` names the file in error messages. */
-bool observationToPoints(
-	const mrpt::obs::CObservation& obs, std::vector<PointXYZI>& out,
-	const RawlogSourceOptions& opts, const std::string& source);
+bool observationToPoints(const mrpt::obs::CObservation& obs, std::vector<PointXYZI>& out,
+                         const RawlogSourceOptions& opts, const std::string& source);
 
 }  // namespace rasterslam::io

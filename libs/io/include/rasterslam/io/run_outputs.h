@@ -1,11 +1,11 @@
 // The files a run leaves in its output folder.
 #pragma once
 
-#include <Eigen/Geometry>
 #include <mrpt/containers/yaml.h>
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/pose_conversions.h>
 
+#include <Eigen/Geometry>
 #include <string>
 
 namespace rasterslam::io
@@ -19,8 +19,8 @@ using rasterslam::toIsometry;  // Eigen isometry of an MRPT pose (core/pose_conv
  *  - loops.txt: every loop candidate examined, when a loop detector ran;
  *  - pose_graph.graph: the keyframe pose graph in MRPT's text format (opens in MRPT tools);
  *  - run.yaml: `runInfo` as given (config, versions, input, counts, summary). */
-void writeRunOutputs(
-	const std::string& dir, const RunResult& res, const mrpt::containers::yaml& runInfo);
+void writeRunOutputs(const std::string& dir, const RunResult& res,
+                     const mrpt::containers::yaml& runInfo);
 
 /** Checks that `dir` exists or can be created and that a file can be written in it; throws
  *  naming the folder otherwise. */

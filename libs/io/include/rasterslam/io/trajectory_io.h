@@ -2,7 +2,6 @@
 #pragma once
 
 #include <Eigen/Geometry>
-
 #include <string>
 #include <vector>
 
@@ -27,9 +26,8 @@ enum class TrajectoryFormat
 /** Reads a trajectory. Blank lines and lines starting with '#' are skipped. Throws
  *  std::runtime_error naming the file and line on a wrong column count, a non-number, a
  *  non-finite value or a rotation that is not orthonormal (|R^T R - I| > 1e-3). */
-Trajectory loadTrajectory(
-	const std::string& path, TrajectoryFormat fmt = TrajectoryFormat::Auto,
-	TrajectoryFormat* detected = nullptr);
+Trajectory loadTrajectory(const std::string& path, TrajectoryFormat fmt = TrajectoryFormat::Auto,
+                          TrajectoryFormat* detected = nullptr);
 
 /** Writes a file atomically (temporary name, then rename); throws naming the file. */
 void saveTrajectoryTum(const std::string& path, const Trajectory& traj);

@@ -18,7 +18,7 @@ class Keyframe : public mrpt::serialization::CSerializable
 	DEFINE_SERIALIZABLE(Keyframe, rasterslam)
 
    public:
-	uint64_t id = 0;  //!< pose-graph node id, unique across the sessions of a map
+	uint64_t id = 0;       //!< pose-graph node id, unique across the sessions of a map
 	uint32_t session = 0;  //!< the session (run) that made it
 	uint64_t scanIndex = 0;
 	double stamp = 0;
@@ -28,7 +28,7 @@ class Keyframe : public mrpt::serialization::CSerializable
 
 	std::vector<float> u, v, angle, response;  //!< one entry a feature
 	std::vector<uint8_t> octave;
-	std::vector<float> xyz;  //!< 3 floats a feature
+	std::vector<float> xyz;            //!< 3 floats a feature
 	std::vector<uint8_t> descriptors;  //!< 32 bytes a feature
 
 	std::size_t size() const { return u.size(); }

@@ -42,7 +42,7 @@ class LocalMap : public mrpt::serialization::CSerializable
 	 *  (it is only looked at, never matched, so it is kept compressed). */
 	std::vector<uint8_t> imagePng;
 	float imageResolution_m = 0;  //!< metres a pixel, 0 for the pinhole image
-	float imageExtent_m = 0;  //!< the image covers +-extent around the anchor
+	float imageExtent_m = 0;      //!< the image covers +-extent around the anchor
 
 	/** Local BA figures, for run reports. */
 	uint32_t baTracks = 0;

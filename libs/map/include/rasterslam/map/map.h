@@ -7,11 +7,10 @@
 #include <rasterslam/map/local_map_store.h>
 
 #include <deque>
-#include <memory>
-#include <mutex>
-
 #include <functional>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -38,12 +37,12 @@ struct SessionRecord
 	uint32_t id = 0;
 	double firstStamp = 0;  //!< the first scan's time stamp (the input's clock)
 	std::string startedAt;  //!< wall-clock time the session was made, ISO 8601 UTC
-	std::string sensor;  //!< sensor label of its scans
-	std::string input;  //!< what it read (the rawlog's path), or the merged map's folder
+	std::string sensor;     //!< sensor label of its scans
+	std::string input;      //!< what it read (the rawlog's path), or the merged map's folder
 	bool operator==(const SessionRecord& o) const
 	{
-		return id == o.id && firstStamp == o.firstStamp && startedAt == o.startedAt && sensor == o.sensor &&
-			   input == o.input;
+		return id == o.id && firstStamp == o.firstStamp && startedAt == o.startedAt &&
+		       sensor == o.sensor && input == o.input;
 	}
 };
 

@@ -53,8 +53,8 @@ struct RasterStats
  *  the height above the ground of the highest point of each pixel, and for each pixel the
  *  index of that point in `pts` (-1 when empty). `ground` may be invalid (then heights are
  *  z + sensorHeight_m). */
-RasterStats rasterizeElevation(
-	const std::vector<PointXYZI>& pts, const Plane& ground, const RasterParams& p, RasterFrame& out);
+RasterStats rasterizeElevation(const std::vector<PointXYZI>& pts, const Plane& ground,
+                               const RasterParams& p, RasterFrame& out);
 
 /** Pixel (u, v) of a point for the given parameters (floating point; may lie outside). */
 bool projectPoint(const RasterParams& p, float x, float y, float z, float& u, float& v);

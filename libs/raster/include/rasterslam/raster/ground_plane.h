@@ -2,9 +2,9 @@
 // draws on the ground become outliers once projected, so the ground is removed first).
 #pragma once
 
-#include <Eigen/Core>
 #include <rasterslam/core/types.h>
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
