@@ -14,7 +14,7 @@ PKGS=(
   zlib1g-dev
   libceres-dev
   libcli11-dev nlohmann-json3-dev
-  clang-format-14
+  clang-format-14 jq
 )
 
 if [ "${RASTERSLAM_SKIP_DEPS:-0}" = "1" ]; then
