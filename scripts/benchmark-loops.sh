@@ -26,7 +26,7 @@ variant() {  # variant NAME SEARCH VOCAB -> config file
 for scen in town-vlp16 town-loop; do
   rawlog="$WORK/$scen.rawlog"
   [ -f "$rawlog" ] || "$bin/rasterslam-sim" --scenario "$here/rawlogs/$scen.yaml" -o "$rawlog" >/dev/null 2>&1
-  "$bin/rasterslam" run --rawlog "$rawlog" --config "$here/share/rasterslam/config/default.yaml" --out "$WORK/$scen-odometry" --quiet >/dev/null
+  "$bin/rasterslam" run --rawlog "$rawlog" --config "$here/share/rasterslam/config/tracking.yaml" --out "$WORK/$scen-odometry" --quiet >/dev/null
   odo=$("$bin/rasterslam-eval" traj --gt "$WORK/$scen-odometry/groundtruth.tum" --est "$WORK/$scen-odometry/trajectory.tum" --json)
   odo_ate=$(json "$odo" ate_rmse_m)
   echo "$scen ($(grep -c . "$WORK/$scen-odometry/trajectory.tum") scans): odometry only, ATE $(printf '%.3f' "$odo_ate") m"

@@ -67,12 +67,12 @@ noloss=$(variant wrong30-noloss "s/^engine:/engine:\n  test_corrupt_loops: 0.3/"
 mm_off=$(variant mapping-ba-off "/^loop_detector:/,/^optimizer:/{/^optimizer:/!d}")
 mm_on=$(variant mapping-ba-on "/^loop_detector:/,/^optimizer:/{/^optimizer:/!d}" "s/local_ba: false/local_ba: true/")
 
-echo "== Tracking only (default.yaml) against the full system (slam.yaml)"
+echo "== Tracking only (tracking.yaml) against the full system (slam.yaml)"
 printf '  %-26s %7s %7s %8s %9s %8s %8s %6s %6s\n' run "ms/scan" p95 "peak MB" "kB/kf" "ATE m" "/track" loops maps
 for in in "${inputs[@]}"; do
   name=${in%%:*}; rawlog=${in#*:}
   echo " $name"
-  run "$rawlog" "$cfgdir/default.yaml" "$WORK/$name-track"
+  run "$rawlog" "$cfgdir/tracking.yaml" "$WORK/$name-track"
   odo=$(ate "$WORK/$name-track")
   row "tracking only" "$WORK/$name-track"
   run "$rawlog" "$slam" "$WORK/$name-slam"
@@ -156,7 +156,7 @@ if [ -d "$DATA" ]; then
   echo "== --realtime on the KITTI sample: late scans after the first, tracking p95 (ms)"
   for rate in 2 4; do
     for cfg in default slam; do
-      c="$cfgdir/default.yaml"; [ $cfg = slam ] && c=$slam
+      c="$cfgdir/tracking.yaml"; [ $cfg = slam ] && c=$slam
       out="$WORK/rt-$rate-$cfg"
       run "$WORK/kitti00-0000-0100.rawlog" "$c" "$out" --realtime --rate "$rate"
       late=$(awk -F, 'NR>2 && $7==1' "$out/timings.csv" | wc -l)

@@ -6,7 +6,7 @@
 # SemanticKITTI and the official poses, 10..80 m segments) and a simulated town drive.
 #
 # usage: scripts/benchmark.sh [CONFIG.yaml ...]
-#   default configs: share/rasterslam/config/default.yaml (the paper's tracking) and
+#   default configs: share/rasterslam/config/tracking.yaml (the paper's tracking) and
 #   share/rasterslam/config/gicp-baseline.yaml.  Env: BUILD (build dir), DATA, SIM_SCANS.
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -18,7 +18,7 @@ bin="$BUILD/bin"
 # One core, as the goals are stated: OpenCV would otherwise spread some work over both.
 PIN=""
 command -v taskset >/dev/null 2>&1 && PIN="taskset -c 0"
-[ $# -gt 0 ] || set -- "$here/share/rasterslam/config/default.yaml" "$here/share/rasterslam/config/gicp-baseline.yaml"
+[ $# -gt 0 ] || set -- "$here/share/rasterslam/config/tracking.yaml" "$here/share/rasterslam/config/gicp-baseline.yaml"
 mkdir -p "$WORK"
 
 json() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" <<<"$1"; }

@@ -274,7 +274,7 @@ TEST(EndToEnd, BadConfigsAndOutputFolders)
 	// Usage errors exit with 2.
 	r = test::runCommand(test::bin("rasterslam") + " run --out " + (dir / "o").string());
 	EXPECT_EQ(r.exitCode, 2);
-	EXPECT_NE(r.output.find("--rawlog FILE is required"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("--rawlog is required"), std::string::npos) << r.output;
 	r = test::runCommand(test::bin("rasterslam") + " run --rawlog x --out y --rate fast");
 	EXPECT_EQ(r.exitCode, 2);
 }

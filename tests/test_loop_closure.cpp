@@ -52,7 +52,7 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 		return r.output;
 	};
-	runWith("default.yaml", dir / "odo");
+	runWith("tracking.yaml", dir / "odo");
 	runWith("slam.yaml", dir / "slam");
 	ASSERT_TRUE(fs::exists(dir / "slam" / "loops.txt"));
 	EXPECT_FALSE(fs::exists(dir / "odo" / "loops.txt"));  // no loop detector configured

@@ -155,7 +155,7 @@ TEST(Mapping, OnlinePosesAreThoseOfTheTrackingUntilTheFirstLoop)
 {
 	const test::ScopedTempDir dir("mapping");
 	ASSERT_EQ(run(slamConfig(dir.path(), false, ""), dir / "slam").exitCode, 0);
-	ASSERT_EQ(run(test::sourcePath("share/rasterslam/config/default.yaml"), dir / "odo").exitCode,
+	ASSERT_EQ(run(test::sourcePath("share/rasterslam/config/tracking.yaml"), dir / "odo").exitCode,
 	          0);
 	const auto online = io::loadTrajectory((dir / "slam/trajectory_online.tum").string());
 	const auto final = io::loadTrajectory((dir / "slam/trajectory.tum").string());

@@ -149,7 +149,7 @@ TEST(Config, EngineRejectsBadConfigs)
 
 TEST(Config, ShippedConfigsLoad)
 {
-	for (const auto* name : {"default.yaml", "gicp-baseline.yaml"})
+	for (const auto* name : {"tracking.yaml", "gicp-baseline.yaml"})
 	{
 		const auto path = test::sourcePath(std::string("share/rasterslam/config/") + name);
 		EXPECT_EQ(errorOf([&] { Engine e(loadYamlFile(path), path); }), "") << path;

@@ -1,31 +1,35 @@
-// Shared bits of the rasterslam command line.
+// Shared bits of the rasterslam command line (conventions in rasterslam/cli/app.h).
 #pragma once
 
-#include <cstdlib>
-#include <iostream>
+#include <rasterslam/cli/app.h>
+
+#include <functional>
 #include <string>
+#include <vector>
 
 namespace rasterslam::cli
 {
-/** Exit codes: 0 success; 1 bad input or a failure while running (outputs written for what
- *  was processed, when possible); 2 wrong command-line usage. */
-constexpr int kExitError = 1, kExitUsage = 2;
-
-[[noreturn]] inline void usageError(const std::string& msg)
+/** A subcommand and what runs it once the command line is parsed. */
+struct Command
 {
-	std::cerr << "rasterslam: " << msg << "\n(see rasterslam --help)\n";
-	std::exit(kExitUsage);
-}
+	CLI::App* app = nullptr;
+	std::function<int()> run;
+};
 
-int runCommand(int argc, char** argv);         // `rasterslam run ...`
-int relocalizeCommand(int argc, char** argv);  // `rasterslam relocalize ...`
-int mapCommand(int argc, char** argv);         // `rasterslam map ...`
-std::size_t parseIndexArg(const std::string& opt, const std::string& v);
-/** share/rasterslam/config/<name> from the environment, the install or the source tree. */
-std::string findConfig(const std::string& name = "default.yaml");
-inline std::string findDefaultConfig()
-{
-	return findConfig("default.yaml");
-}
+Command addRunCommand(CLI::App& app);                // `rasterslam run ...`
+Command addRelocalizeCommand(CLI::App& app);         // `rasterslam relocalize ...`
+std::vector<Command> addMapCommands(CLI::App& app);  // `rasterslam map info|export|merge|prune`
+Command addExportCommand(CLI::App& app);             // `rasterslam export ...`
+
+/** share/rasterslam/config/<file> from $RASTERSLAM_SHARE_DIR, the install or the source tree. */
+std::string findConfig(const std::string& file);
+/** The names of the shipped configs (file names without .yaml), sorted. */
+std::vector<std::string> shippedConfigs();
+/** What --config names: an existing file, or a shipped config's name (`slam`, `tracking`,
+ *  `gicp-baseline`, with or without .yaml). Empty: the shipped `fallback`. Throws naming the
+ *  argument and the shipped names when it is neither. */
+std::string resolveConfig(const std::string& arg, const std::string& fallback = "slam");
+/** Help text of --config. */
+std::string configHelp(const std::string& fallback = "slam");
 
 }  // namespace rasterslam::cli

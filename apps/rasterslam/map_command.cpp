@@ -23,37 +23,6 @@ namespace rasterslam::cli
 {
 namespace
 {
-const char* kMapUsage = R"(usage: rasterslam map info DIR
-       rasterslam map export DIR --out DIR2
-       rasterslam map merge A B --out C [--config FILE] [--overwrite] [--quiet]
-       rasterslam map prune DIR (--before WHEN | --keep-per-place N [--place-radius M])
-                            [--dry-run] [--config FILE]
-  info DIR     sessions, local maps online and offline, keyframes, points, sizes on disk and
-               the time span of the map saved in DIR (by rasterslam run --map-out)
-  export DIR   writes DIR2/map.graph (keyframe pose graph, MRPT text format),
-               DIR2/map.simplemap (one keyframe per local map with its points, MRPT),
-               DIR2/points.pcd and points.ply (every local map's points in the map frame),
-               DIR2/top.png (points and each session's trajectory from above) and
-               DIR2/localmaps/NNNN.png, DIR2/keyframes-sN.tum (each session's keyframes)
-  merge A B    two maps built separately become one, written to C: each keyframe of B is
-               located in A with no pose prior; engine.anchor_min_agreeing (3) of them must
-               agree on where B lies, else nothing is written (exit 1, "no overlap"). B's
-               keyframes are moved there and optimized with A fixed; B's sessions, local maps
-               and graph follow A's (ids renumbered), linked by relocalization edges.
-               --config: the loop detector and optimizer to use (default: slam.yaml);
-               C must not hold a map unless --overwrite (C may be A: A is then replaced)
-  prune DIR    drops local maps that were offline when the map was saved, with their
-               place-index entries and the keyframes no other local map holds, and writes
-               the map back to DIR (atomically):
-                 --before WHEN       those last updated before WHEN: a date (2026-06-01,
-                                     2026-06-01T12:00:00Z, UTC) or seconds in the input's clock
-                 --keep-per-place N  all but the newest N of each place: going from the
-                                     newest (later session, then later stamp), a local map
-                                     goes when N kept ones have their anchor within M metres
-                                     of its anchor (--place-radius, default 10)
-               with both, only what both drop goes; --dry-run lists and changes nothing
-)";
-
 int mapInfo(const std::string& dir)
 {
 	const Map map = loadMap(dir);
@@ -119,35 +88,18 @@ int mapInfo(const std::string& dir)
 	}
 	return 0;
 }
-int mapMerge(int argc, char** argv)
+struct MergeArgs
 {
-	std::vector<std::string> dirs;
-	std::string out, configPath;
+	std::string a, b, out, configPath;
 	bool overwrite = false, quiet = false;
-	for (int i = 2; i < argc; i++)
-	{
-		const std::string a = argv[i];
-		auto value = [&]() -> std::string
-		{
-			if (i + 1 >= argc)
-				usageError("map merge: " + a + " needs a value");
-			return argv[++i];
-		};
-		if (a == "--out")
-			out = value();
-		else if (a == "--config")
-			configPath = value();
-		else if (a == "--overwrite")
-			overwrite = true;
-		else if (a == "--quiet")
-			quiet = true;
-		else if (!a.empty() && a[0] == '-')
-			usageError("map merge: unknown option '" + a + "'");
-		else
-			dirs.push_back(a);
-	}
-	if (dirs.size() != 2 || out.empty())
-		usageError("map merge: expected rasterslam map merge A B --out C");
+};
+
+int mapMerge(const MergeArgs& args)
+{
+	const std::vector<std::string> dirs{args.a, args.b};
+	const std::string& out = args.out;
+	const bool overwrite = args.overwrite, quiet = args.quiet;
+	std::string configPath = args.configPath;
 	std::error_code ec;
 	if (fs::exists(mapFilePath(out), ec) && !overwrite)
 		throw std::runtime_error("--out " + out +
@@ -157,8 +109,7 @@ int mapMerge(int argc, char** argv)
 	if (fs::exists(dirs[1], ec) && fs::exists(out, ec) && fs::equivalent(dirs[1], out, ec))
 		throw std::runtime_error("--out " + out +
 		                         " is the map being merged in (B): write to A or a new folder");
-	if (configPath.empty())
-		configPath = findConfig("slam.yaml");
+	configPath = resolveConfig(configPath, "slam");
 	Engine engine(loadYamlFile(configPath), configPath);
 	engine.setLogLevel(quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
 	engine.loadMap(dirs[0]);
@@ -189,7 +140,7 @@ double parseWhen(const std::string& v)
 	if ((n == 3 && v.size() == 10) || n == 6 || (n == 7 && tail == 'Z'))
 	{
 		if (M < 1 || M > 12 || D < 1 || D > 31 || h > 23 || m > 59 || sec > 60)
-			usageError("map prune: --before '" + v + "' is not a valid date");
+			usageError("rasterslam map prune", "--before '" + v + "' is not a valid date");
 		tm.tm_year = Y - 1900;
 		tm.tm_mon = M - 1;
 		tm.tm_mday = D;
@@ -209,64 +160,32 @@ double parseWhen(const std::string& v)
 		used = 0;
 	}
 	if (used != v.size() || !std::isfinite(x))
-		usageError("map prune: --before '" + v +
-		           "' is neither a date (YYYY-MM-DD[THH:MM:SS]) nor seconds");
+		usageError("rasterslam map prune",
+		           "--before '" + v + "' is neither a date (YYYY-MM-DD[THH:MM:SS]) nor seconds");
 	return x;
 }
 
-int mapPrune(int argc, char** argv)
+struct PruneArgs
 {
-	std::string dir, configPath;
+	std::string dir, before, configPath;
+	std::size_t keepPerPlace = 0;
+	double placeRadius_m = 10;
+	bool dryRun = false, quiet = false;
+};
+
+int mapPrune(const PruneArgs& args)
+{
+	const std::string& dir = args.dir;
+	std::string configPath = args.configPath;
+	const bool quiet = args.quiet;
 	PruneOptions opts;
-	bool quiet = false;
-	for (int i = 2; i < argc; i++)
-	{
-		const std::string a = argv[i];
-		auto value = [&]() -> std::string
-		{
-			if (i + 1 >= argc)
-				usageError("map prune: " + a + " needs a value");
-			return argv[++i];
-		};
-		if (a == "--before")
-			opts.before = parseWhen(value());
-		else if (a == "--keep-per-place")
-		{
-			const auto v = value();
-			const auto n = parseIndexArg(a, v);
-			if (n < 1)
-				usageError("map prune: --keep-per-place must be >= 1");
-			opts.keepPerPlace = n;
-		}
-		else if (a == "--place-radius")
-		{
-			const auto v = value();
-			char* end = nullptr;
-			opts.placeRadius_m = std::strtod(v.c_str(), &end);
-			if (end == v.c_str() || *end || !(opts.placeRadius_m > 0) ||
-			    !std::isfinite(opts.placeRadius_m))
-				usageError("map prune: --place-radius must be a distance > 0 in metres");
-		}
-		else if (a == "--dry-run")
-			opts.dryRun = true;
-		else if (a == "--config")
-			configPath = value();
-		else if (a == "--quiet")
-			quiet = true;
-		else if (!a.empty() && a[0] == '-')
-			usageError("map prune: unknown option '" + a + "'");
-		else if (dir.empty())
-			dir = a;
-		else
-			usageError("map prune: expected one folder");
-	}
-	if (dir.empty())
-		usageError(
-		    "map prune: expected rasterslam map prune DIR (--before WHEN | --keep-per-place N)");
-	if (!opts.before && !opts.keepPerPlace)
-		usageError("map prune: give --before WHEN or --keep-per-place N");
-	if (configPath.empty())
-		configPath = findConfig("slam.yaml");
+	if (!args.before.empty())
+		opts.before = parseWhen(args.before);
+	if (args.keepPerPlace > 0)
+		opts.keepPerPlace = args.keepPerPlace;
+	opts.placeRadius_m = args.placeRadius_m;
+	opts.dryRun = args.dryRun;
+	configPath = resolveConfig(configPath, "slam");
 	Engine engine(loadYamlFile(configPath), configPath);
 	engine.setLogLevel(quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_WARN);
 	engine.loadMap(dir);
@@ -286,49 +205,122 @@ int mapPrune(int argc, char** argv)
 	                              .c_str());
 	return 0;
 }
-}  // namespace
 
-int mapCommand(int argc, char** argv)
+int mapExport(const std::string& dir, const std::string& out)
 {
-	if (argc < 2 || std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help")
-	{
-		(argc < 2 ? std::cerr : std::cout) << kMapUsage;
-		return argc < 2 ? kExitUsage : 0;
-	}
-	const std::string sub = argv[1];
+	// The export is a program of its own beside this one: only it loads PCL.
+	const auto exe =
+	    (fs::read_symlink("/proc/self/exe").parent_path() / "rasterslam-map-export").string();
+	std::vector<std::string> strs{exe, dir, "--out", out};
+	std::vector<char*> args;
+	for (auto& a : strs)
+		args.push_back(a.data());
+	args.push_back(nullptr);
+	std::fflush(stdout);
+	::execv(exe.c_str(), args.data());
+	throw std::runtime_error("cannot run '" + exe + "': " + std::strerror(errno));
+}
+
+/** Runs a map tool: errors while running are exit 1 with the message. */
+template <typename F>
+int guarded(F&& f)
+{
 	try
 	{
-		if (sub == "export")
-		{
-			if (argc != 5 || std::string(argv[3]) != "--out")
-				usageError("map export: expected rasterslam map export DIR --out DIR2");
-			// The export is a program of its own beside this one: only it loads PCL.
-			const auto exe =
-			    (fs::read_symlink("/proc/self/exe").parent_path() / "rasterslam-map-export")
-			        .string();
-			std::vector<char*> args{const_cast<char*>(exe.c_str()), argv[2], argv[3], argv[4],
-			                        nullptr};
-			std::fflush(stdout);
-			::execv(exe.c_str(), args.data());
-			throw std::runtime_error("cannot run '" + exe + "': " + std::strerror(errno));
-		}
-		if (sub == "merge")
-			return mapMerge(argc, argv);
-		if (sub == "prune")
-			return mapPrune(argc, argv);
-		if (sub == "info")
-		{
-			if (argc != 3)
-				usageError("map info: expected one folder (rasterslam map info DIR)");
-			return mapInfo(argv[2]);
-		}
+		return f();
 	}
 	catch (const std::exception& e)
 	{
 		std::cerr << "rasterslam: error: " << e.what() << "\n";
 		return kExitError;
 	}
-	usageError("map: unknown subcommand '" + sub + "' (info, export, merge, prune)");
+}
+}  // namespace
+
+std::vector<Command> addMapCommands(CLI::App& app)
+{
+	CLI::App* map = subcommand(app, "map", "tools over a map saved by rasterslam run --map-out");
+	map->require_subcommand(1);
+	std::vector<Command> cmds;
+
+	auto infoDir = std::make_shared<std::string>();
+	auto* info = subcommand(
+	    *map, "info", "sessions, local maps, keyframes, points, sizes and time span of a map");
+	info->add_option("DIR", *infoDir, "map folder")->required();
+	cmds.push_back({info, [infoDir] { return guarded([&] { return mapInfo(*infoDir); }); }});
+
+	auto ex = std::make_shared<std::pair<std::string, std::string>>();
+	auto* exp = subcommand(
+	    *map, "export", "write a saved map for MRPT's tools, PCL and viewers",
+	    "Writes DIR2/map.graph (keyframe pose "
+	    "graph, MRPT text format), DIR2/map.simplemap (one keyframe per local map with its "
+	    "points), DIR2/points.pcd and points.ply (every local map's points in the map frame), "
+	    "DIR2/top.png (points and each session's trajectory from above), DIR2/localmaps/NNNN.png "
+	    "and DIR2/keyframes-sN.tum (each session's keyframes)");
+	exp->add_option("DIR", ex->first, "map folder")->required();
+	exp->add_option("--out", ex->second, "output folder")->required()->type_name("DIR2");
+	cmds.push_back(
+	    {exp, [ex] { return guarded([&] { return mapExport(ex->first, ex->second); }); }});
+
+	auto m = std::make_shared<MergeArgs>();
+	auto* merge = subcommand(
+	    *map, "merge", "merge two maps built separately into one",
+	    "Two maps built separately become one, written to C: each keyframe of B is located in A "
+	    "with no pose prior; engine.anchor_min_agreeing (3) of them must agree on where B lies, "
+	    "else nothing is written (exit 1, \"no overlap\"). B's keyframes are moved there and "
+	    "optimized with A fixed; B's sessions, local maps and graph follow A's (ids renumbered), "
+	    "linked by relocalization edges");
+	merge->add_option("A", m->a, "the map B is merged into")->required();
+	merge->add_option("B", m->b, "the map merged in")->required();
+	merge->add_option("--out", m->out, "output folder (may be A: A is then replaced)")
+	    ->required()
+	    ->type_name("C");
+	merge
+	    ->add_option("--config", m->configPath,
+	                 configHelp("slam") + "; its loop detector and optimizer are used")
+	    ->type_name("FILE|NAME");
+	merge->add_flag("--overwrite", m->overwrite, "let --out replace a map already there");
+	merge->add_flag("--quiet", m->quiet, "only errors and the final summary");
+	cmds.push_back({merge, [m] { return guarded([&] { return mapMerge(*m); }); }});
+
+	auto p = std::make_shared<PruneArgs>();
+	auto* prune = subcommand(
+	    *map, "prune", "drop old local maps, by date or by place",
+	    "Drops local maps that were offline when the map was saved, with their place-index "
+	    "entries and the keyframes no other local map holds, and writes the map back to DIR "
+	    "(atomically); with both --before and --keep-per-place only what both drop goes.");
+	prune->add_option("DIR", p->dir, "map folder")->required();
+	auto* before = prune->add_option(
+	    "--before", p->before,
+	    "drop those last updated before WHEN: a date (2026-06-01, 2026-06-01T12:00:00Z, UTC) "
+	    "or seconds in the input's clock");
+	before->type_name("WHEN");
+	auto* keep =
+	    prune
+	        ->add_option("--keep-per-place", p->keepPerPlace,
+	                     "drop all but the newest N of each place: going from the newest (later "
+	                     "session, then later stamp), a local map goes when N kept ones have "
+	                     "their anchor within --place-radius of its anchor")
+	        ->check(unnamed(CLI::Range(std::size_t{1}, std::size_t{1000000})))
+	        ->type_name("N");
+	prune->add_option("--place-radius", p->placeRadius_m, "the radius of a place (m)")
+	    ->check(unnamed(CLI::PositiveNumber))
+	    ->needs(keep)
+	    ->type_name("M")
+	    ->capture_default_str();
+	prune->add_flag("--dry-run", p->dryRun, "list what would go and change nothing");
+	prune->add_option("--config", p->configPath, configHelp("slam"))->type_name("FILE|NAME");
+	prune->add_flag("--quiet", p->quiet, "only errors and the final summary");
+	cmds.push_back({prune, [p, before, keep]
+	                {
+		                if (before->count() == 0 && keep->count() == 0)
+			                usageError("rasterslam map prune",
+			                           "give --before WHEN or --keep-per-place N");
+		                if (!p->before.empty())
+			                parseWhen(p->before);  // a usage error before the map is loaded
+		                return guarded([&] { return mapPrune(*p); });
+	                }});
+	return cmds;
 }
 
 }  // namespace rasterslam::cli

@@ -16,53 +16,60 @@ namespace fs = std::filesystem;
 
 namespace rasterslam::cli
 {
-int relocalizeCommand(int argc, char** argv)
+namespace
+{
+struct RelocalizeArgs
 {
 	std::string mapDir, rawlog, outDir, configPath;
 	std::optional<std::size_t> first, last;
-	auto level = mrpt::system::LVL_INFO;
-	for (int i = 1; i < argc; i++)
-	{
-		const std::string a = argv[i];
-		auto value = [&]() -> std::string
-		{
-			if (i + 1 >= argc)
-				usageError(a + " needs a value");
-			return argv[++i];
-		};
-		if (a == "--map")
-			mapDir = value();
-		else if (a == "--rawlog")
-			rawlog = value();
-		else if (a == "--out")
-			outDir = value();
-		else if (a == "--config")
-			configPath = value();
-		else if (a == "--first")
-			first = parseIndexArg(a, value());
-		else if (a == "--last")
-			last = parseIndexArg(a, value());
-		else if (a == "--quiet")
-			level = mrpt::system::LVL_ERROR;
-		else if (a == "--verbose")
-			level = mrpt::system::LVL_DEBUG;
-		else if (a == "-h" || a == "--help")
-		{
-			std::cout << "usage: rasterslam relocalize --map DIR --rawlog FILE --out DIR2 "
-			             "[--config FILE] "
-			             "[--first N] [--last N] [--quiet|--verbose]\n";
-			return 0;
-		}
-		else
-			usageError("relocalize: unknown option '" + a + "'");
-	}
-	if (mapDir.empty() || rawlog.empty() || outDir.empty())
-		usageError("relocalize: --map DIR, --rawlog FILE and --out DIR2 are required");
+	bool quiet = false, verbose = false;
+};
+int relocalizeCommand(const RelocalizeArgs& args);
+}  // namespace
+
+Command addRelocalizeCommand(CLI::App& app)
+{
+	auto a = std::make_shared<RelocalizeArgs>();
+	CLI::App* sub = subcommand(
+	    app, "relocalize", "locate every scan of a rawlog in a saved map, with no pose prior",
+	    "Writes DIR2/relocalization.txt: a line a scan with stamp, status, reason, local map, "
+	    "keyframe, score, inliers and the pose x y z qx qy qz qw in the map frame.");
+	sub->add_option("--map", a->mapDir, "map saved by rasterslam run --map-out")
+	    ->required()
+	    ->type_name("DIR");
+	sub->add_option("--rawlog", a->rawlog, "MRPT rawlog with 3D scans")
+	    ->required()
+	    ->type_name("FILE");
+	sub->add_option("--out", a->outDir, "output folder for relocalization.txt")
+	    ->required()
+	    ->type_name("DIR2");
+	sub->add_option("--config", a->configPath, configHelp("slam"))->type_name("FILE|NAME");
+	addIndex(*sub, "--first", a->first, "skip scans before input index N (0-based)");
+	addIndex(*sub, "--last", a->last, "stop after input index N (inclusive)");
+	auto* q = sub->add_flag("--quiet", a->quiet, "only errors and the final summary");
+	sub->add_flag("--verbose", a->verbose, "debug logging")->excludes(q);
+	return {sub, [a]
+	        {
+		        if (a->first && a->last && *a->first > *a->last)
+			        usageError("rasterslam relocalize", "--first is after --last");
+		        return relocalizeCommand(*a);
+	        }};
+}
+
+namespace
+{
+int relocalizeCommand(const RelocalizeArgs& args)
+{
+	std::string configPath = args.configPath;
+	const std::string &mapDir = args.mapDir, &rawlog = args.rawlog, &outDir = args.outDir;
+	const auto &first = args.first, &last = args.last;
+	const auto level = args.verbose
+	                       ? mrpt::system::LVL_DEBUG
+	                       : (args.quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
 	try
 	{
 		io::ensureWritableDir(outDir);
-		if (configPath.empty())
-			configPath = findConfig("slam.yaml");
+		configPath = resolveConfig(configPath, "slam");
 		Engine engine(loadYamlFile(configPath), configPath);
 		engine.setLogLevel(level);
 		if (!engine.rasterizer() || !engine.loopDetector() || !engine.mapManager())
@@ -113,5 +120,7 @@ int relocalizeCommand(int argc, char** argv)
 		return kExitError;
 	}
 }
+
+}  // namespace
 
 }  // namespace rasterslam::cli

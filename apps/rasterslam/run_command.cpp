@@ -24,22 +24,6 @@ namespace rasterslam::cli
 {
 namespace
 {
-std::size_t parseIndex(const std::string& opt, const std::string& v)
-{
-	std::size_t pos = 0;
-	long long n = -1;
-	try
-	{
-		n = std::stoll(v, &pos);
-	}
-	catch (const std::exception&)
-	{
-	}
-	if (n < 0 || pos != v.size())
-		usageError(opt + " expects a non-negative integer, got '" + v + "'");
-	return static_cast<std::size_t>(n);
-}
-
 double percentile(std::vector<double> v, double q)
 {
 	if (v.empty())
@@ -104,99 +88,93 @@ class Progress
 };
 }  // namespace
 
-std::size_t parseIndexArg(const std::string& opt, const std::string& v)
+namespace
 {
-	return parseIndex(opt, v);
-}
-
-std::string findConfig(const std::string& name)
-{
-	std::vector<fs::path> dirs;
-	if (const char* env = std::getenv("RASTERSLAM_SHARE_DIR"))
-		dirs.emplace_back(env);
-	std::error_code ec;
-	const auto exe = fs::read_symlink("/proc/self/exe", ec);
-	if (!ec)
-		dirs.push_back(exe.parent_path() / ".." / "share" / "rasterslam");
-	dirs.emplace_back(RASTERSLAM_SOURCE_SHARE_DIR);
-	dirs.emplace_back(RASTERSLAM_INSTALL_SHARE_DIR);
-	for (const auto& d : dirs)
-		if (fs::exists(d / "config" / name))
-			return (d / "config" / name).lexically_normal().string();
-	throw std::runtime_error("no config found (share/rasterslam/config/" + name +
-	                         "); give --config");
-}
-
-int runCommand(int argc, char** argv)
+struct RunArgs
 {
 	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
-	RunOptions opts;
+	std::optional<std::size_t> first, last;
+	bool realtime = false;
+	double rate = 1;
 	bool quiet = false, verbose = false, saveImages = false, overwrite = false,
 	     requireLocalization = false;
-	for (int i = 1; i < argc; i++)
-	{
-		const std::string a = argv[i];
-		auto value = [&]() -> std::string
-		{
-			if (i + 1 >= argc)
-				usageError(a + " needs a value");
-			return argv[++i];
-		};
-		if (a == "--rawlog")
-			rawlog = value();
-		else if (a == "--out")
-			outDir = value();
-		else if (a == "--config")
-			configPath = value();
-		else if (a == "--first")
-			opts.first = parseIndex(a, value());
-		else if (a == "--last")
-			opts.last = parseIndex(a, value());
-		else if (a == "--realtime")
-			opts.realtime = true;
-		else if (a == "--rate")
-		{
-			const auto v = value();
-			char* end = nullptr;
-			opts.rate = std::strtod(v.c_str(), &end);
-			if (end != v.c_str() + v.size() || !(opts.rate > 0))
-				usageError("--rate expects a positive number, got '" + v + "'");
-		}
-		else if (a == "--sensor")
-			sensor = value();
-		else if (a == "--save-images")
-			saveImages = true;
-		else if (a == "--overwrite")
-			overwrite = true;
-		else if (a == "--require-localization")
-			requireLocalization = true;
-		else if (a == "--map-out")
-			mapOut = value();
-		else if (a == "--map-in")
-			mapIn = value();
-		else if (a == "--quiet")
-			quiet = true;
-		else if (a == "--verbose")
-			verbose = true;
-		else if (a == "-h" || a == "--help")
-		{
-			std::cout
-			    << "usage: rasterslam run --rawlog FILE --out DIR [--config FILE] [--first N] "
-			       "[--last N] [--realtime [--rate R]] [--sensor LABEL] [--save-images] [--map-in "
-			       "DIR] [--map-out DIR [--overwrite]] [--require-localization] "
-			       "[--quiet|--verbose]\n"
-			       "(rasterslam --help explains every option)\n";
-			return 0;
-		}
-		else
-			usageError("run: unknown option '" + a + "'");
-	}
-	if (rawlog.empty())
-		usageError("run: --rawlog FILE is required");
-	if (outDir.empty())
-		usageError("run: --out DIR is required");
-	if (opts.first && opts.last && *opts.first > *opts.last)
-		usageError("run: --first is after --last");
+};
+
+int runCommand(const RunArgs& args);
+}  // namespace
+
+Command addRunCommand(CLI::App& app)
+{
+	auto a = std::make_shared<RunArgs>();
+	CLI::App* sub = subcommand(
+	    app, "run", "SLAM over an MRPT rawlog: trajectory, timings, run.yaml, the map",
+	    "Without --config the paper's whole system runs (slam): tracking, local maps, loop "
+	    "closure over the bag-of-words place index and pose-graph optimization; --config tracking "
+	    "runs the tracking alone.");
+	sub->add_option("--rawlog", a->rawlog,
+	                "MRPT rawlog (either format, gzip or plain) with 3D scans")
+	    ->required()
+	    ->type_name("FILE");
+	sub->add_option("--out", a->outDir,
+	                "output folder: trajectory.tum, trajectory.kitti, timings.csv, run.yaml, "
+	                "pose_graph.graph, loops.txt, groundtruth.{tum,kitti} when the rawlog has "
+	                "ground truth")
+	    ->required()
+	    ->type_name("DIR");
+	sub->add_option("--config", a->configPath, configHelp("slam"))->type_name("FILE|NAME");
+	addIndex(*sub, "--first", a->first, "skip scans before input index N (0-based)");
+	addIndex(*sub, "--last", a->last, "stop after input index N (inclusive)");
+	auto* rt = sub->add_flag("--realtime", a->realtime,
+	                         "play scans at their time stamps; the summary counts late scans");
+	sub->add_option("--rate", a->rate, "clock scale for --realtime (2 = twice as fast)")
+	    ->check(unnamed(CLI::PositiveNumber))
+	    ->needs(rt)
+	    ->type_name("R")
+	    ->capture_default_str();
+	sub->add_option("--sensor", a->sensor, "use only scans with this sensor label")
+	    ->type_name("LABEL");
+	sub->add_flag("--save-images", a->saveImages,
+	              "write each scan's elevation image to DIR/images/NNNNNN.png");
+	auto* in = sub->add_option("--map-in", a->mapIn,
+	                           "start in a map saved by --map-out: the session is located in it "
+	                           "(poses are then in that map's frame) and mapping goes on")
+	               ->type_name("DIR");
+	auto* out =
+	    sub->add_option("--map-out", a->mapOut,
+	                    "save the map (keyframes, local maps, their graph, the place index: "
+	                    "DIR/map.rsmap, DIR/store/, DIR/localmaps/*.png). A map already there is "
+	                    "only replaced when it is the --map-in map or with --overwrite")
+	        ->type_name("DIR");
+	sub->add_flag("--overwrite", a->overwrite, "let --map-out replace a map that is not --map-in")
+	    ->needs(out);
+	sub->add_flag("--require-localization", a->requireLocalization,
+	              "with --map-in: exit 1 when the session is never located in the map (a "
+	              "session never located is not saved into it either way)")
+	    ->needs(in);
+	auto* q = sub->add_flag("--quiet", a->quiet, "only errors and the final summary");
+	sub->add_flag("--verbose", a->verbose, "debug logging and the config in force")->excludes(q);
+	return {sub, [a]
+	        {
+		        if (a->first && a->last && *a->first > *a->last)
+			        usageError("rasterslam run", "--first is after --last");
+		        return runCommand(*a);
+	        }};
+}
+
+namespace
+{
+int runCommand(const RunArgs& args)
+{
+	std::string configPath = args.configPath;
+	const std::string &rawlog = args.rawlog, &outDir = args.outDir, &sensor = args.sensor,
+	                  &mapOut = args.mapOut, &mapIn = args.mapIn;
+	const bool quiet = args.quiet, verbose = args.verbose, saveImages = args.saveImages,
+	           overwrite = args.overwrite, requireLocalization = args.requireLocalization;
+	RunOptions opts;
+	opts.first = args.first;
+	opts.last = args.last;
+	opts.realtime = args.realtime;
+	opts.rate = args.rate;
 
 	const auto logLevel = verbose ? mrpt::system::LVL_DEBUG
 	                              : (quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
@@ -221,8 +199,7 @@ int runCommand(int argc, char** argv)
 				                         " to extend it, or --overwrite to replace it");
 			io::ensureWritableDir(mapOut);
 		}
-		if (configPath.empty())
-			configPath = findDefaultConfig();
+		configPath = resolveConfig(configPath, "slam");
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);
 		if (!mapIn.empty())
@@ -230,15 +207,14 @@ int runCommand(int argc, char** argv)
 			if (!engine->mapManager() || !engine->loopDetector() || !engine->rasterizer())
 				throw std::runtime_error(
 				    "--map-in needs a rasterizer, a map_manager and a loop_detector in the config, "
-				    "e.g. "
-				    "share/rasterslam/config/slam.yaml");
+				    "e.g. --config slam");
 			engine->loadMap(mapIn);
 			opts.relocalizeFirstScan = true;
 		}
 		if (!mapOut.empty() && !engine->mapManager())
 			throw std::runtime_error(
 			    "--map-out needs a map_manager in the config (it keeps the map), e.g. "
-			    "share/rasterslam/config/slam.yaml");
+			    "--config slam");
 		engine->setLogLevel(logLevel);
 		io::RawlogSourceOptions so;
 		so.sensorLabel = sensor;
@@ -471,5 +447,7 @@ int runCommand(int argc, char** argv)
 	// A damaged input processed up to the damage is still a failed run for scripts.
 	return res.stopReason.empty() ? 0 : kExitError;
 }
+
+}  // namespace
 
 }  // namespace rasterslam::cli

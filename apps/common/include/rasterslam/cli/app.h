@@ -8,6 +8,8 @@
 #include <CLI/CLI.hpp>
 #include <cstdlib>
 #include <iostream>
+#include <memory>
+#include <sstream>
 #include <string>
 
 #ifndef RASTERSLAM_VERSION
@@ -20,10 +22,72 @@ namespace rasterslam::cli
  *  processed, when possible); 2 wrong command-line usage. */
 constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2;
 
+/** Greedy word wrap at `width` columns; existing line breaks are kept. */
+inline std::string wrap(const std::string& text, std::size_t width)
+{
+	std::string out, line, word;
+	auto flushWord = [&]
+	{
+		if (word.empty())
+			return;
+		if (!line.empty() && line.size() + 1 + word.size() > width)
+		{
+			out += line + "\n";
+			line.clear();
+		}
+		line += (line.empty() ? "" : " ") + word;
+		word.clear();
+	};
+	for (const char c : text)
+	{
+		if (c == ' ')
+			flushWord();
+		else if (c == '\n')
+		{
+			flushWord();
+			out += line + "\n";
+			line.clear();
+		}
+		else
+			word += c;
+	}
+	flushWord();
+	return out + line;
+}
+
+/** CLI11's formatter with descriptions, footers and the subcommand list wrapped at 100
+ *  columns (CLI11 2.1 does not wrap). */
+class Formatter : public CLI::Formatter
+{
+   public:
+	static constexpr std::size_t kWidth = 100;
+	std::string make_option_desc(const CLI::Option* opt) const override
+	{
+		return wrap(CLI::Formatter::make_option_desc(opt), kWidth - get_column_width());
+	}
+	std::string make_subcommand(const CLI::App* sub) const override
+	{
+		std::stringstream out;
+		CLI::detail::format_help(out, sub->get_display_name(true),
+		                         wrap(sub->get_description(), kWidth - get_column_width()),
+		                         get_column_width());
+		return out.str();
+	}
+	std::string make_description(const CLI::App* app) const override
+	{
+		return wrap(CLI::Formatter::make_description(app), kWidth);
+	}
+	std::string make_footer(const CLI::App* app) const override
+	{
+		const std::string f = app->get_footer();
+		return f.empty() ? std::string() : wrap(f, kWidth) + "\n";
+	}
+};
+
 inline const char* exitCodesFooter()
 {
-	return "Exit codes: 0 success; 1 bad input or run failure (outputs are still written for\n"
-	       "what was processed); 2 usage error.";
+	return "Exit codes: 0 success; 1 bad input or run failure (outputs are still written for what "
+	       "was processed); 2 usage error.";
 }
 
 /** Gives `app` the project's look: --version, a footer with the exit codes, wide option
@@ -35,9 +99,16 @@ inline void configure(CLI::App& app, const std::string& extraVersion = "")
 		version += " (" + extraVersion + ")";
 	app.set_help_flag("-h,--help", "print this help and exit");
 	app.set_version_flag("--version", version, "print the version and exit");
-	app.footer(exitCodesFooter());
+	app.formatter(std::make_shared<Formatter>());
 	app.get_formatter()->column_width(34);
-	app.option_defaults()->always_capture_default();
+	app.footer(exitCodesFooter());
+}
+
+/** A validator without the type note CLI11 prints after the option's name ("R:POSITIVE"). */
+inline CLI::Validator unnamed(CLI::Validator v)
+{
+	v.description("");
+	return v;
 }
 
 /** An input index such as --first/--last: a whole number >= 0 (negative values are usage
@@ -57,12 +128,16 @@ CLI::Option* addIndex(CLI::App& app, const std::string& name, T& value,
 	return app.add_option(name, value, description)->check(wholeNumber)->type_name("N");
 }
 
-/** A subcommand with the same look (its own --help; the parent's --version). */
-inline CLI::App* subcommand(CLI::App& app, const std::string& name, const std::string& description)
+/** A subcommand with the same look (its own --help and the exit codes; the parent's
+ *  --version). `description` is one line (the parent's list of subcommands shows it);
+ *  `details`, when given, is printed below the options. */
+inline CLI::App* subcommand(CLI::App& app, const std::string& name, const std::string& description,
+                            const std::string& details = "")
 {
 	CLI::App* sub = app.add_subcommand(name, description);
 	sub->set_help_flag("-h,--help", "print this help and exit");
-	sub->get_formatter()->column_width(34);
+	sub->footer(details.empty() ? std::string(exitCodesFooter())
+	                            : details + "\n\n" + exitCodesFooter());
 	return sub;
 }
 
@@ -93,6 +168,32 @@ inline std::string commandPath(const CLI::App& app)
  *  to return at once: 0 after --help or --version, 2 after a usage error (message printed). */
 inline int parse(CLI::App& app, int argc, char** argv)
 {
+	// A word where a subcommand is expected must be one: CLI11 would only say that a
+	// subcommand is required.
+	CLI::App* cur = &app;
+	std::string path = app.get_name();
+	for (int i = 1; i < argc; i++)
+	{
+		const auto subs = cur->get_subcommands([](CLI::App*) { return true; });
+		const std::string arg = argv[i];
+		if (subs.empty() || arg.empty() || arg[0] == '-')
+			break;
+		CLI::App* next = nullptr;
+		for (auto* s : subs)
+			if (s->check_name(arg))
+				next = s;
+		if (!next)
+		{
+			std::string names;
+			for (const auto* s : subs)
+				names += (names.empty() ? "" : ", ") + s->get_name();
+			std::cerr << path << ": unknown command '" << arg << "' (" << names << ")\n(see "
+			          << path << " --help)\n";
+			return kExitUsage;
+		}
+		cur = next;
+		path += " " + arg;
+	}
 	try
 	{
 		app.parse(argc, argv);

@@ -1,0 +1,257 @@
+// The `rasterslam` program's command line: help, version and usage errors of every command,
+// the whole system by default, configs by name, and `rasterslam export` round trips.
+#include <gtest/gtest.h>
+#include <rasterslam/core/config.h>
+#include <rasterslam/io/trajectory_io.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using namespace rasterslam;
+
+namespace
+{
+std::string rs(const std::string& args)
+{
+	return test::bin("rasterslam") + " " + args;
+}
+
+bool contains(const std::string& text, const std::string& what)
+{
+	return text.find(what) != std::string::npos;
+}
+
+std::string readFile(const fs::path& p)
+{
+	std::ifstream f(p, std::ios::binary);
+	std::stringstream ss;
+	ss << f.rdbuf();
+	return ss.str();
+}
+
+/** The first 30 KITTI scans as a rawlog in `dir`. */
+std::string kitti30(const fs::path& dir)
+{
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto p = (dir / "kitti30.rawlog").string();
+	const auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D +
+	                                "/velodyne --poses " + D + "/poses_semantickitti.txt --calib " +
+	                                D + "/calib.txt --times " + D + "/times.txt --last 29 -o " + p);
+	EXPECT_EQ(r.exitCode, 0) << r.output;
+	return p;
+}
+}  // namespace
+
+TEST(RasterslamCli, HelpListsEveryCommandAndVersionNamesTheProgram)
+{
+	auto r = test::runCommand(rs("--help"));
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	for (const auto* cmd : {"run", "relocalize", "export", "map", "list-plugins", "Exit codes"})
+		EXPECT_TRUE(contains(r.output, cmd)) << cmd << "\n" << r.output;
+	r = test::runCommand(rs("--version"));
+	EXPECT_EQ(r.exitCode, 0);
+	EXPECT_TRUE(contains(r.output, "rasterslam 0.")) << r.output;
+	EXPECT_TRUE(contains(r.output, "MRPT 2.")) << r.output;
+
+	// Each command's own help names its own options.
+	const std::vector<std::pair<std::string, std::vector<std::string>>> helps{
+	    {"run", {"--rawlog", "--map-out", "--config", "--realtime", "--first"}},
+	    {"relocalize", {"--map", "--rawlog", "--out", "--quiet", "--verbose"}},
+	    {"export", {"--rawlog", "--format", "--first", "--last", "{bin,pcd,ply}"}},
+	    {"map", {"info", "export", "merge", "prune"}},
+	    {"map merge", {"--out", "--overwrite", "--config"}},
+	    {"map prune", {"--before", "--keep-per-place", "--place-radius", "--dry-run"}},
+	    {"map info", {"DIR"}}};
+	for (const auto& [cmd, words] : helps)
+	{
+		r = test::runCommand(rs(cmd + " --help"));
+		EXPECT_EQ(r.exitCode, 0) << cmd << "\n" << r.output;
+		EXPECT_TRUE(contains(r.output, "Usage: rasterslam " + cmd)) << cmd << "\n" << r.output;
+		for (const auto& w : words)
+			EXPECT_TRUE(contains(r.output, w)) << cmd << ": " << w << "\n" << r.output;
+	}
+}
+
+TEST(RasterslamCli, UsageErrorsExitTwoNamingTheCommandAndTheProblem)
+{
+	test::ScopedTempDir dir("cli-usage");
+	const std::string out = (dir / "o").string();
+	struct Case
+	{
+		std::string args, message;
+	};
+	const std::vector<Case> cases{
+	    {"", "A subcommand is required"},
+	    {"fly", "fly"},
+	    {"run --out " + out, "rasterslam run: --rawlog is required"},
+	    {"run --rawlog x --out " + out + " --bogus", "--bogus"},
+	    {"run --rawlog x --out " + out + " --first -3", "--first: expects a whole number >= 0"},
+	    {"run --rawlog x --out " + out + " --first 5 --last 2", "--first is after --last"},
+	    {"run --rawlog x --out " + out + " --quiet --verbose", "--quiet excludes --verbose"},
+	    {"run --rawlog x --out " + out + " --rate 2", "--rate requires --realtime"},
+	    {"run --rawlog x --out " + out + " --realtime --rate 0", "--rate"},
+	    {"run --rawlog x --out " + out + " --overwrite", "--overwrite requires --map-out"},
+	    {"relocalize --rawlog x --out " + out, "rasterslam relocalize: --map is required"},
+	    {"export --rawlog x --out " + out + " --format xyz", "--format"},
+	    {"map", "rasterslam map: A subcommand is required"},
+	    {"map info", "DIR is required"},
+	    {"map merge a --out c", "B is required"},
+	    {"map prune " + out, "give --before WHEN or --keep-per-place N"},
+	    {"map prune " + out + " --before 2026-13-01", "is not a valid date"},
+	    {"map prune " + out + " --keep-per-place 0", "--keep-per-place"},
+	};
+	for (const auto& c : cases)
+	{
+		const auto r = test::runCommand(rs(c.args));
+		EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
+		EXPECT_TRUE(contains(r.output, c.message)) << c.args << "\n" << r.output;
+		EXPECT_TRUE(contains(r.output, "--help)")) << c.args << "\n" << r.output;
+	}
+	// Nothing was made by a usage error.
+	EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(RasterslamCli, ConfigIsAPathOrAShippedName)
+{
+	test::ScopedTempDir dir("cli-config");
+	auto r =
+	    test::runCommand(rs("run --rawlog x --out " + (dir / "o").string() + " --config nonesuch"));
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	for (const auto* name : {"--config nonesuch", "slam", "tracking", "gicp-baseline"})
+		EXPECT_TRUE(contains(r.output, name)) << name << "\n" << r.output;
+	// A folder is not a config.
+	r = test::runCommand(
+	    rs("run --rawlog x --out " + (dir / "o").string() + " --config " + dir.path().string()));
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, "not a regular file")) << r.output;
+}
+
+TEST(RasterslamCli, DefaultRunIsTheWholeSystemAndNamedConfigsWork)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	test::ScopedTempDir dir("cli-default");
+	const auto rawlog = kitti30(dir.path());
+	// No --config: tracking, map manager, loop closure and optimization; --map-out works.
+	auto r = test::runCommand(rs("run --rawlog " + rawlog + " --out " + (dir / "full").string() +
+	                             " --map-out " + (dir / "map").string() + " --quiet"));
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_TRUE(fs::exists(dir / "map" / "map.rsmap"));
+	const auto full = loadYamlFile((dir / "full" / "run.yaml").string());
+	EXPECT_TRUE(contains(full["input"]["config"].as<std::string>(), "config/slam.yaml"));
+	const auto& cfg = full["config"];
+	EXPECT_EQ(cfg["rasterizer"]["class"].as<std::string>(), "rasterslam::ElevationRasterizer");
+	EXPECT_EQ(cfg["odometry"]["class"].as<std::string>(), "rasterslam::OrbOdometry");
+	EXPECT_EQ(cfg["map_manager"]["class"].as<std::string>(), "rasterslam::LocalMapManager");
+	EXPECT_EQ(cfg["loop_detector"]["class"].as<std::string>(), "rasterslam::BowLoopDetector");
+	EXPECT_EQ(cfg["optimizer"]["class"].as<std::string>(), "rasterslam::CeresOptimizer");
+	EXPECT_GE(full["counts"]["local_maps"].as<int>(), 1);
+
+	// A shipped config by name: the tracking alone.
+	r = test::runCommand(rs("run --rawlog " + rawlog + " --out " + (dir / "trk").string() +
+	                        " --config tracking --quiet"));
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const auto trk = loadYamlFile((dir / "trk" / "run.yaml").string());
+	EXPECT_TRUE(contains(trk["input"]["config"].as<std::string>(), "config/tracking.yaml"));
+	EXPECT_FALSE(trk["config"].has("loop_detector"));
+	EXPECT_FALSE(trk["config"].has("map_manager"));
+	EXPECT_EQ(trk["counts"]["local_maps"].as<int>(), 0);
+}
+
+TEST(RasterslamCli, ExportRoundTripGivesTheSameScansAndTrajectory)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	test::ScopedTempDir dir("cli-export");
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto rawlog = kitti30(dir.path());
+	auto r = test::runCommand(
+	    rs("export --rawlog " + rawlog + " --out " + (dir / "ex").string() + " --quiet"));
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	// KITTI's own scans come back byte for byte (their sensorPose is the identity).
+	std::size_t n = 0;
+	for (; fs::exists(dir / "ex" / "velodyne" / (std::to_string(1000000 + n).substr(1) + ".bin"));
+	     n++)
+		;
+	ASSERT_EQ(n, 30u);
+	for (const auto* f : {"000000.bin", "000017.bin", "000029.bin"})
+		EXPECT_EQ(readFile(dir / "ex" / "velodyne" / f), readFile(fs::path(D) / "velodyne" / f))
+		    << f;
+	const auto gt = io::loadTrajectory((dir / "ex" / "poses.txt").string());
+	ASSERT_EQ(gt.size(), 30u);
+	const auto times = io::loadKittiTimes((dir / "ex" / "times.txt").string());
+	ASSERT_EQ(times.size(), 30u);
+	EXPECT_DOUBLE_EQ(times.front(), 0.0);
+	EXPECT_GT(times.back(), 2.5);  // 10 Hz
+
+	// Converted back, the same trajectory comes out of the same pipeline.
+	r = test::runCommand(test::bin("kitti2rawlog") + " --sequence " + (dir / "ex").string() +
+	                     " -o " + (dir / "back.rawlog").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	for (const auto& [in, out] : {std::pair{rawlog, std::string("a")},
+	                              std::pair{(dir / "back.rawlog").string(), std::string("b")}})
+	{
+		r = test::runCommand(
+		    rs("run --rawlog " + in + " --config tracking --quiet --out " + (dir / out).string()));
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+	}
+	const auto a = io::loadTrajectory((dir / "a" / "trajectory.tum").string());
+	const auto b = io::loadTrajectory((dir / "b" / "trajectory.tum").string());
+	ASSERT_EQ(a.size(), 30u);
+	ASSERT_EQ(b.size(), a.size());
+	for (std::size_t i = 0; i < a.size(); i++)
+		EXPECT_LT((a[i].pose.matrix() - b[i].pose.matrix()).norm(), 1e-9) << "scan " << i;
+	// And the exported ground truth is the rawlog's.
+	const auto gtA = io::loadTrajectory((dir / "a" / "groundtruth.tum").string());
+	ASSERT_EQ(gtA.size(), gt.size());
+	for (std::size_t i = 0; i < gt.size(); i++)
+		EXPECT_LT((gtA[i].pose.matrix() - gt[i].pose.matrix()).norm(), 1e-6) << "pose " << i;
+}
+
+TEST(RasterslamCli, ExportWritesPcdAndPlyWithTheirPointCountsAndRefusesToClobber)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	test::ScopedTempDir dir("cli-export-fmt");
+	const auto D = test::sharedData("kitti00-0000-0100");
+	const auto rawlog = kitti30(dir.path());
+	const auto binBytes = fs::file_size(fs::path(D) / "velodyne" / "000004.bin");
+	for (const std::string fmt : {"pcd", "ply"})
+	{
+		const auto out = dir / fmt;
+		auto r = test::runCommand(rs("export --rawlog " + rawlog + " --out " + out.string() +
+		                             " --format " + fmt + " --first 4 --last 5 --quiet"));
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+		// Scan 4 of the input is file 0 of the export.
+		const auto text = readFile(out / "velodyne" / ("000000." + fmt));
+		ASSERT_FALSE(fs::exists(out / "velodyne" / ("000002." + fmt)));
+		const std::string endOfHeader = fmt == "pcd" ? "DATA binary\n" : "end_header\n";
+		const auto h = text.find(endOfHeader);
+		ASSERT_NE(h, std::string::npos) << fmt;
+		const auto header = text.substr(0, h);
+		const std::string count = std::to_string(binBytes / 16);
+		EXPECT_TRUE(contains(header, fmt == "pcd" ? "POINTS " + count : "element vertex " + count))
+		    << header;
+		EXPECT_EQ(text.size() - h - endOfHeader.size(), binBytes) << fmt;
+		EXPECT_EQ(text.substr(h + endOfHeader.size()),
+		          readFile(fs::path(D) / "velodyne" / "000004.bin"))
+		    << fmt;
+
+		// A second export into the same folder needs --overwrite; the first stays whole.
+		r = test::runCommand(rs("export --rawlog " + rawlog + " --out " + out.string() +
+		                        " --format " + fmt + " --last 0 --quiet"));
+		EXPECT_EQ(r.exitCode, 1) << r.output;
+		EXPECT_TRUE(contains(r.output, "--overwrite")) << r.output;
+		EXPECT_EQ(readFile(out / "velodyne" / ("000000." + fmt)), text);
+		r = test::runCommand(rs("export --rawlog " + rawlog + " --out " + out.string() +
+		                        " --format " + fmt + " --last 0 --quiet --overwrite"));
+		EXPECT_EQ(r.exitCode, 0) << r.output;
+		EXPECT_FALSE(fs::exists(out / "velodyne" / ("000001." + fmt)));
+	}
+	// A rawlog that is not there: exit 1 naming it.
+	const auto r = test::runCommand(
+	    rs("export --rawlog " + (dir / "none.rawlog").string() + " --out " + (dir / "x").string()));
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, (dir / "none.rawlog").string())) << r.output;
+}
