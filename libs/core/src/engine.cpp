@@ -280,436 +280,104 @@ bool Engine::anchorsAgree(const mrpt::poses::CPose3D& d) const
 	return d.norm() < anchorAgree_m_ && angleDeg < anchorAgree_deg_;
 }
 
-RunResult Engine::run(ScanSource& source, const RunOptions& opts)
+/** One run's state: the tracking's poses and keyframe, the back end, the session's anchoring
+ *  in a prior map, and the result being filled. */
+struct Engine::RunState
 {
+	RunState(Engine& e, ScanSource& src, const RunOptions& o, const detail::BackendSettings& bs)
+	    : source(src),
+	      opts(o),
+	      backend(e.mapManager_.get(), e.loopDetector_.get(), e.optimizer_.get(), bs, res, e,
+	              !o.realtime),
+	      poses(backend.poses()),
+	      anchored(!o.relocalizeFirstScan)
+	{
+	}
+	ScanSource& source;
+	const RunOptions& opts;
 	RunResult res;
-	auto& graph = res.graph;
-	graph.clear();
-	// Keyframe ids continue those of a loaded map: unique across its sessions.
-	mrpt::graphs::TNodeID nextNode = mapManager_ ? mapManager_->map().nextKeyframeId() : 0;
-	graph.root = nextNode;
 	// Mapping and loop closing: on their own thread; in batch mode in step with the tracking.
-	detail::BackendSettings bs;
-	bs.optimizeOnline = optimizeOnline_;
-	bs.optimizeEveryKeyframes = optimizeEveryKeyframes_;
-	bs.optimizeOnlineWindow = optimizeOnlineWindow_;
-	bs.testCorruptLoops = testCorruptLoops_;
-	detail::Backend backend(mapManager_.get(), loopDetector_.get(), optimizer_.get(), bs, res,
-	                        *this, !opts.realtime);
-	const PoseView& poses = backend.poses();
+	detail::Backend backend;
+	const PoseView& poses;
 	const double cpu0 = detail::threadCpuSeconds();
+	const Clock::time_point wall0 = Clock::now();
+
+	// Input
+	std::size_t currentIndex = 0;
+	double readMs = 0;  //!< reading the current scan
+	std::optional<double> firstStamp;
+	// The input's own odometry composed since the last keyframe (paper: visual odometry
+	// factors fused into the graph; here any odometry the rawlog carries).
+	std::optional<mrpt::poses::CPose3DPDFGaussian> odoSinceKf;
+
+	// Tracking
+	mrpt::graphs::TNodeID nextNode = 0;
+	RasterFrame raster;
+	mrpt::poses::CPose3D currPose;  //!< odometry pose of the current scan
+	mrpt::poses::CPose3D lastKfPose;
+	mrpt::poses::CPose3D T_kf_prev;  //!< the previous scan in the frame of its keyframe
+	mrpt::graphs::TNodeID lastKf = 0;
+	bool haveKf = false;
+	std::size_t stepsSinceKf = 0;
 	bool lostSinceKf = false;
-	std::vector<mrpt::poses::CPose3D> anchorHits;  // --map-in: candidate session-to-map transforms
-	std::optional<double> lastAnchorHitStamp;
+
+	// A session in a prior map (--map-in): candidate session-to-map transforms until enough
+	// agree, then the hit that anchors the session at the next keyframe.
 	struct AnchorHit
 	{
 		RelocalizationResult rl;
 		mrpt::poses::CPose3D poseAtHit;  //!< the hit scan's pose in the session's frame
 	};
-	std::optional<AnchorHit> anchorReady;  // agreed, waiting for a keyframe
+	bool anchored;  //!< false until located in a --map-in map
+	std::vector<mrpt::poses::CPose3D> anchorHits;
+	std::optional<double> lastAnchorHitStamp;
+	std::optional<AnchorHit> anchorReady;  //!< agreed, waiting for a keyframe
+};
 
-	const auto wall0 = Clock::now();
-	std::optional<double> firstStamp;
-	mrpt::poses::CPose3D currPose;  // odometry pose of the current scan
-	mrpt::poses::CPose3D lastKfPose;
-	mrpt::poses::CPose3D T_kf_prev;  // the previous scan in the frame of its keyframe
-	mrpt::graphs::TNodeID lastKf = 0;
-	bool haveKf = false;
-	std::size_t stepsSinceKf = 0;
-	RasterFrame raster;
-	// The input's own odometry composed since the last keyframe (paper: visual odometry
-	// factors fused into the graph; here any odometry the rawlog carries).
-	std::optional<mrpt::poses::CPose3DPDFGaussian> odoSinceKf;
-	bool anchored = !opts.relocalizeFirstScan;  // false until located in a --map-in map
-
-	std::size_t currentIndex = 0;
+// The run reads in the order the data flows: read and check a scan, pace it, rasterize it,
+// track it, locate it in a prior map or after a loss, make it a keyframe (handed to the back
+// end for mapping, loop closing and online optimization), record it; at the end, finish the
+// back end and optimize the whole graph.
+RunResult Engine::run(ScanSource& source, const RunOptions& opts)
+{
+	detail::BackendSettings bs;
+	bs.optimizeOnline = optimizeOnline_;
+	bs.optimizeEveryKeyframes = optimizeEveryKeyframes_;
+	bs.optimizeOnlineWindow = optimizeOnlineWindow_;
+	bs.testCorruptLoops = testCorruptLoops_;
+	RunState s(*this, source, opts, bs);
+	s.res.graph.clear();
+	// Keyframe ids continue those of a loaded map: unique across its sessions.
+	s.nextNode = mapManager_ ? mapManager_->map().nextKeyframeId() : 0;
+	s.res.graph.root = s.nextNode;
 	try
 	{
-		for (;;)
+		while (std::optional<Scan> scan = readScan(s))
 		{
-			const auto tRead = Clock::now();
-			std::optional<Scan> scan = source.next();
-			const double readMs = msSince(tRead);
-			if (!scan)
-				break;
-			if (opts.first && scan->index < *opts.first)
-				continue;
-			if (opts.last && scan->index > *opts.last)
-				break;
-			currentIndex = scan->index;
-			// The input's odometry of every scan counts, also of a scan dropped below.
-			if (useRawlogOdometry_ && haveKf && scan->odometryIncrement)
+			addInputOdometry(s, *scan);
+			if (!admitScan(s, *scan))
 			{
-				if (!odoSinceKf)
-					odoSinceKf = *scan->odometryIncrement;
-				else
-					*odoSinceKf += *scan->odometryIncrement;
-			}
-
-			// Bad scans: non-finite coordinates or too few points.
-			std::size_t nonFinite = 0;
-			for (const auto& p : scan->points)
-				if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-					++nonFinite;
-			if (nonFinite > 0 && dropNonFinite_)
-			{
-				// Organized clouds mark "no return" with NaN: drop those points only.
-				auto& v = scan->points;
-				v.erase(std::remove_if(v.begin(), v.end(),
-				                       [](const PointXYZI& p) {
-					                       return !std::isfinite(p.x) || !std::isfinite(p.y) ||
-					                              !std::isfinite(p.z);
-				                       }),
-				        v.end());
-			}
-			if ((nonFinite > 0 && !dropNonFinite_) ||
-			    scan->points.size() < static_cast<std::size_t>(minPoints_))
-			{
-				const std::string what =
-				    nonFinite > 0 && !dropNonFinite_
-				        ? mrpt::format(
-				              "%s: scan #%zu (t=%.6f) has %zu non-finite points (NaN or inf) among "
-				              "%zu; set "
-				              "engine.drop_nonfinite_points: true to drop such points",
-				              source.name().c_str(), scan->index, scan->stamp, nonFinite,
-				              scan->points.size())
-				        : mrpt::format(
-				              "%s: scan #%zu (t=%.6f) has %zu points; expected at least %d "
-				              "(engine.min_points)",
-				              source.name().c_str(), scan->index, scan->stamp, scan->points.size(),
-				              minPoints_);
-				if (!skipBadScans_)
-				{
-					res.error = what + "; set engine.on_bad_scan: skip to drop such scans";
+				if (!s.res.error.empty())
 					break;
-				}
-				MRPT_LOG_WARN_STREAM(what << "; skipped");
-				++res.skippedBadScans;
 				continue;
 			}
-
-			if (!firstStamp)
-			{
-				firstStamp = scan->stamp;
-				if (mapManager_)
-				{
-					SessionRecord session;
-					session.firstStamp = scan->stamp;
-					session.sensor = scan->sensorLabel;
-					session.input = source.name();
-					session.startedAt = isoTimeNow();
-					std::lock_guard<std::mutex> lk(backend.mapMutex());
-					mapManager_->describeSession(session);
-				}
-			}
-			ScanRecord rec;
-			rec.index = scan->index;
-			rec.stamp = scan->stamp;
-			rec.numPoints = scan->points.size();
-			if (scan->groundTruth)
-				rec.groundTruth = scan->groundTruth->asTPose();
-			rec.ms.read = readMs;
-
-			if (opts.realtime)
-			{
-				const double due_s = (scan->stamp - *firstStamp) / std::max(opts.rate, 1e-6);
-				const auto due = wall0 + std::chrono::duration_cast<Clock::duration>(
-				                             std::chrono::duration<double>(due_s));
-				if (Clock::now() < due)
-					std::this_thread::sleep_until(due);
-				else if (std::chrono::duration<double>(Clock::now() - due).count() > 1e-3)
-				{
-					rec.late = true;
-					++res.late;
-				}
-			}
+			ScanRecord rec = beginScan(s, *scan);
+			pace(s, *scan, rec);
 			const auto tScan = Clock::now();
-
-			const RasterFrame* rasterPtr = nullptr;
-			if (rasterizer_)
-			{
-				const auto t0 = Clock::now();
-				rasterizer_->rasterize(*scan, raster);
-				rasterPtr = &raster;
-				rec.ms.rasterize = msSince(t0);
-				if (opts.onRaster)
-					opts.onRaster(*scan, raster);
-			}
-
-			const auto tOdo = Clock::now();
-			const OdometryResult odo = odometry_->process(*scan, rasterPtr);
-			rec.ms.odometry = msSince(tOdo);
-			rec.status = odo.status;
-			rec.inliers = odo.inliers;
-			if (odo.status == TrackingStatus::Lost)
-			{
-				++res.lost;
-				if (!(loopDetector_ && rasterPtr && relocalizeOnLoss_ && anchored))
-					lostSinceKf = true;
-				MRPT_LOG_THROTTLE_WARN_STREAM(1.0, "scan " << scan->index << ": tracking lost ("
-				                                           << odo.message
-				                                           << "); using the motion prior");
-			}
-			if (haveKf)
-			{
-				// The back end may have moved the keyframe (local BA, a loop): track from there.
-				std::lock_guard<std::mutex> lk(backend.graphMutex());
-				lastKfPose = graph.nodes.at(lastKf);
-			}
-			if (!haveKf)
-				currPose = mrpt::poses::CPose3D();
-			else if (odo.T_kf_curr)
-				currPose = lastKfPose + *odo.T_kf_curr;
-			else
-				currPose = lastKfPose + (T_kf_prev + odo.T_prev_curr);
-			++stepsSinceKf;
-
-			// Relocalization (paper, "Re-localization"): at the start of a session with a prior
-			// map, and whenever tracking is lost, the scan queries the loop detector's database
-			// with no pose prior. Found: the pose comes from the map (and, if the matched keyframe
-			// is in this run's graph, a constraint to it). Not found: tracking goes on from the
-			// motion prior, linked to the past only by a weak edge: a new, disconnected part that
-			// a later loop closure can join.
+			const RasterFrame* raster = rasterize(s, *scan, rec);
+			const OdometryResult odo = track(s, *scan, raster, rec);
+			const bool atKeyframe = !s.haveKf || odo.keyframe;
 			std::optional<LoopConstraint> relocEdge;
-			const bool atKeyframe = !haveKf || odo.keyframe;
-			if (loopDetector_ && rasterPtr && !anchored && (atKeyframe || anchorEveryScan_))
-			{
-				// A session in a prior map: try every scan (or keyframe) until it is found there,
-				// then move everything tracked so far into the map's frame.
-				const auto t0 = Clock::now();
-				// Held until the session is moved into the map's frame: the back end must not see
-				// half of it (it holds this lock for a whole keyframe's work).
-				std::lock_guard<std::mutex> mapLock(backend.mapMutex());
-				const Map& map = mapManager_->map();
-				const RelocalizationResult rl =
-				    loopDetector_->relocalize(*scan, *rasterPtr, map, poses);
-				// Only an earlier session's local map can anchor this one (its own are in its own
-				// frame).
-				const bool earlier =
-				    rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
-				rec.ms.loop += msSince(t0);
-				// Hits count when they are apart in time: neighbouring scans see the same place and
-				// would agree whether it is the right one or not.
-				if (earlier && (!lastAnchorHitStamp ||
-				                scan->stamp >= *lastAnchorHitStamp + anchorHitSpacing_s_))
-				{
-					// Where this hit puts the session's frame in the map's. One hit is not enough:
-					// a wrong place can match as well as the right one, so the session is anchored
-					// only when engine.anchor_min_agreeing hits agree on it.
-					const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - currPose);
-					anchorHits.push_back(C);
-					lastAnchorHitStamp = scan->stamp;
-					std::size_t agreeing = 0;
-					for (const auto& h : anchorHits)
-					{
-						// Compared where the vehicle is now: a heading difference then counts as
-						// the offset it makes here, not at the session's origin.
-						agreeing += anchorsAgree((h + currPose) - rl.pose);
-					}
-					res.anchorHits = anchorHits.size();
-					if (agreeing >= static_cast<std::size_t>(anchorMinAgreeing_))
-					{
-						// The anchoring is made at a keyframe (a graph node): this one, or the
-						// next.
-						anchorReady = AnchorHit{rl, currPose};
-						MRPT_LOG_INFO_STREAM(
-						    "scan " << scan->index << ": located in the prior map (local map "
-						            << rl.localMap << ", " << rl.inliers << " inliers; " << agreeing
-						            << " of " << anchorHits.size() << " hits agree)");
-					}
-					else
-						MRPT_LOG_INFO_STREAM(
-						    "scan " << scan->index << ": a place in the prior map (local map "
-						            << rl.localMap << ", " << rl.inliers
-						            << " inliers): " << agreeing << " of " << anchorMinAgreeing_
-						            << " agreeing hits needed to anchor");
-				}
-				else if (!earlier)
-				{
-					++res.relocalizationFailures;
-					MRPT_LOG_THROTTLE_WARN_STREAM(
-					    1.0, "scan " << scan->index << ": not located in the prior map yet ("
-					                 << rl.reason << ")");
-				}
-			}
-			if (anchorReady && !anchored && atKeyframe)
-			{
-				// The hit's pose, carried to this scan by the odometry since.
-				const auto& [rl, poseAtHit] = *anchorReady;
-				const mrpt::poses::CPose3D sinceHit = currPose - poseAtHit;
-				const mrpt::poses::CPose3D here = rl.pose + sinceHit;
-				const mrpt::poses::CPose3D C = here + (mrpt::poses::CPose3D() - currPose);
-				{
-					std::lock_guard<std::mutex> lk(backend.graphMutex());
-					for (auto& [id, p] : graph.nodes)
-						p = C + p;
-				}
-				lastKfPose = C + lastKfPose;
-				currPose = here;
-				anchored = true;
-				res.localized = true;
-				backend.setAnchored();
-				// The hit ties the session to the map in the graph (from this keyframe).
-				relocEdge = relocalizationConstraint(rl);
-				relocEdge->T_from_to = here - rl.keyframePose;
-				++res.relocalized;
-				anchorReady.reset();
-			}
-			if (!relocEdge && anchored && loopDetector_ && rasterPtr && haveKf &&
+			if (loopDetector_ && raster && !s.anchored && (atKeyframe || anchorEveryScan_))
+				seekAnchor(s, *scan, *raster, rec);
+			if (s.anchorReady && !s.anchored && atKeyframe)
+				relocEdge = anchor(s);
+			if (!relocEdge && s.anchored && loopDetector_ && raster && s.haveKf &&
 			    odo.status == TrackingStatus::Lost && relocalizeOnLoss_)
-			{
-				const auto t0 = Clock::now();
-				RelocalizationResult rl;
-				{
-					std::lock_guard<std::mutex> lk(backend.mapMutex());
-					rl = loopDetector_->relocalize(*scan, *rasterPtr, mapManager_->map(), poses);
-				}
-				rec.ms.loop += msSince(t0);
-				std::optional<mrpt::poses::CPose3D>
-				    matched;  // the keyframe, when a node of this graph
-				if (const auto* p = poses.live(rl.keyframe))
-					matched = *p;
-				if (rl.found)
-				{
-					++res.relocalized;
-					MRPT_LOG_INFO_STREAM("scan " << scan->index << ": relocalized in local map "
-					                             << rl.localMap << " (keyframe " << rl.keyframe
-					                             << ", " << rl.inliers << " inliers)");
-					if (matched)
-					{
-						relocEdge = relocalizationConstraint(rl);
-						currPose = *matched + relocEdge->T_from_to;
-					}
-					else
-						currPose = rl.pose;  // a keyframe of the prior map: already its frame
-				}
-				else
-				{
-					++res.relocalizationFailures;
-					lostSinceKf = true;
-					MRPT_LOG_THROTTLE_WARN_STREAM(
-					    1.0, "scan " << scan->index << ": relocalization failed (" << rl.reason
-					                 << "): a new, disconnected part of the map starts here");
-				}
-			}
-
-			if (!haveKf || odo.keyframe)
-			{
-				const bool haveKfBefore = haveKf;
-				const mrpt::graphs::TNodeID id = nextNode++;
-				{
-					std::lock_guard<std::mutex> lk(backend.graphMutex());
-					if (haveKf)
-					{
-						// The back end may have moved the last keyframe since this scan read it
-						// (only then recompose: composing a rotation with its own inverse feeds
-						// rounding into every later keyframe).
-						const mrpt::poses::CPose3D kfNow = graph.nodes.at(lastKf);
-						if (!(kfNow == lastKfPose))
-						{
-							currPose = kfNow + (currPose - lastKfPose);
-							lastKfPose = kfNow;
-						}
-					}
-					graph.nodes[id] = currPose;
-					if (haveKf)
-					{
-						mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
-						e.mean = currPose - lastKfPose;
-						// Information of a chain of n steps is roughly 1/n of one step's; an
-						// odometry that tracks against the keyframe gives the edge's own.
-						e.cov_inv = odo.information;
-						if (!odo.T_kf_curr)
-							e.cov_inv *= 1.0 / static_cast<double>(stepsSinceKf);
-						graph.insertEdge(lastKf, id, e);
-						if (odoSinceKf)
-						{
-							graph.insertEdge(lastKf, id, rawlogOdometryEdge(*odoSinceKf));
-							++res.odometryEdges;
-						}
-					}
-					odoSinceKf.reset();
-					if (relocEdge && !graph.nodes.count(relocEdge->from))
-					{
-						// A keyframe of an earlier session: it enters the graph, fixed.
-						if (const auto* prior = poses.prior; prior && prior->count(relocEdge->from))
-							backend.addFixedNode(relocEdge->from, prior->at(relocEdge->from));
-						else
-							relocEdge.reset();
-					}
-					if (relocEdge)
-					{
-						mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
-						e.mean = relocEdge->T_from_to;
-						e.cov_inv = relocEdge->information;
-						graph.insertEdge(relocEdge->from, id, e);
-						res.uncertainEdges.insert({relocEdge->from, id});
-						++res.loopEdges;
-						backend.requestOptimization();
-					}
-				}
-				lastKf = id;
-				lastKfPose = currPose;
-				haveKf = true;
-				stepsSinceKf = 0;
-				rec.keyframe = true;
-				++res.keyframes;
-
-				detail::KeyframeJob job;
-				job.kf = KeyframeInfo{id,       scan->index,      scan->stamp,
-				                      currPose, odo.keyframeData, lostSinceKf && haveKfBefore,
-				                      {}};
-				if (relocEdge)
-					job.kf.locatedAt = relocEdge->from;
-				lostSinceKf = false;
-				if (job.kf.data)
-				{
-					job.kf.data->id = id;
-					job.kf.data->scanIndex = scan->index;
-					job.kf.data->stamp = scan->stamp;
-					job.kf.data->pose = currPose;
-				}
-				job.record = res.scans.size();
-				if (opts.realtime)
-				{
-					// The worker keeps its own copies: the tracking goes on with the next scan.
-					job.scan = std::make_shared<const Scan>(*scan);
-					if (rasterPtr)
-					{
-						auto copy = std::make_shared<RasterFrame>(raster);
-						copy->image = raster.image.makeDeepCopy();  // CImage copies share pixels
-						job.raster = copy;
-					}
-				}
-				else
-				{
-					// Done before submit() returns: no copy needed.
-					job.scan = std::shared_ptr<const Scan>(&*scan, [](const Scan*) {});
-					if (rasterPtr)
-						job.raster = std::shared_ptr<const RasterFrame>(rasterPtr,
-						                                                [](const RasterFrame*) {});
-				}
-				if (mapManager_ || loopDetector_)
-					backend.submit(std::move(job));
-				if (!opts.realtime)
-				{
-					// Local BA or an optimization may have moved this keyframe.
-					std::lock_guard<std::mutex> lk(backend.graphMutex());
-					lastKfPose = currPose = graph.nodes.at(id);
-				}
-			}
-			rec.kfNode = lastKf;
-			const mrpt::poses::CPose3D T_kf_scan = currPose - lastKfPose;
-			rec.T_kf_scan = T_kf_scan.asTPose();
-			rec.onlinePose = currPose.asTPose();
-			// Exactly the identity on a keyframe: composing a rotation with its own inverse would
-			// feed rounding back into every following scan.
-			T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : T_kf_scan;
-			rec.ms.total = msSince(tScan) + readMs;
-			rec.rssMb = static_cast<float>(currentRssMb());
-			res.scans.push_back(rec);
-			if (opts.onScan)
-				opts.onScan(res.scans.back(), source.progress());
+				relocEdge = relocalizeAfterLoss(s, *scan, *raster, rec);
+			if (atKeyframe)
+				addKeyframe(s, *scan, raster, odo, relocEdge, rec);
+			recordScan(s, rec, tScan);
 		}
 	}
 	catch (const std::exception& e)
@@ -718,21 +386,434 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		std::string what = e.what();
 		if (const auto pos = what.find("Call stack"); pos != std::string::npos)
 			what.resize(pos);
-		res.error = source.name() + ": scan #" + std::to_string(currentIndex) + ": " + what;
+		s.res.error = source.name() + ": scan #" + std::to_string(s.currentIndex) + ": " + what;
 	}
-	res.stopReason = source.stopReason();
+	finishRun(s);
+	return std::move(s.res);
+}
+
+std::optional<Scan> Engine::readScan(RunState& s)
+{
+	for (;;)
+	{
+		const auto tRead = Clock::now();
+		std::optional<Scan> scan = s.source.next();
+		s.readMs = msSince(tRead);
+		if (!scan)
+			return std::nullopt;
+		if (s.opts.first && scan->index < *s.opts.first)
+			continue;
+		if (s.opts.last && scan->index > *s.opts.last)
+			return std::nullopt;
+		s.currentIndex = scan->index;
+		return scan;
+	}
+}
+
+void Engine::addInputOdometry(RunState& s, const Scan& scan)
+{
+	// The input's odometry of every scan counts, also of a scan dropped below.
+	if (useRawlogOdometry_ && s.haveKf && scan.odometryIncrement)
+	{
+		if (!s.odoSinceKf)
+			s.odoSinceKf = *scan.odometryIncrement;
+		else
+			*s.odoSinceKf += *scan.odometryIncrement;
+	}
+}
+
+bool Engine::admitScan(RunState& s, Scan& scan)
+{
+	// Bad scans: non-finite coordinates or too few points.
+	std::size_t nonFinite = 0;
+	for (const auto& p : scan.points)
+		if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+			++nonFinite;
+	if (nonFinite > 0 && dropNonFinite_)
+	{
+		// Organized clouds mark "no return" with NaN: drop those points only.
+		auto& v = scan.points;
+		v.erase(std::remove_if(v.begin(), v.end(),
+		                       [](const PointXYZI& p) {
+			                       return !std::isfinite(p.x) || !std::isfinite(p.y) ||
+			                              !std::isfinite(p.z);
+		                       }),
+		        v.end());
+	}
+	if ((nonFinite == 0 || dropNonFinite_) &&
+	    scan.points.size() >= static_cast<std::size_t>(minPoints_))
+		return true;
+	const std::string what =
+	    nonFinite > 0 && !dropNonFinite_
+	        ? mrpt::format(
+	              "%s: scan #%zu (t=%.6f) has %zu non-finite points (NaN or inf) among "
+	              "%zu; set engine.drop_nonfinite_points: true to drop such points",
+	              s.source.name().c_str(), scan.index, scan.stamp, nonFinite, scan.points.size())
+	        : mrpt::format(
+	              "%s: scan #%zu (t=%.6f) has %zu points; expected at least %d "
+	              "(engine.min_points)",
+	              s.source.name().c_str(), scan.index, scan.stamp, scan.points.size(), minPoints_);
+	if (!skipBadScans_)
+	{
+		s.res.error = what + "; set engine.on_bad_scan: skip to drop such scans";
+		return false;
+	}
+	MRPT_LOG_WARN_STREAM(what << "; skipped");
+	++s.res.skippedBadScans;
+	return false;
+}
+
+ScanRecord Engine::beginScan(RunState& s, const Scan& scan)
+{
+	if (!s.firstStamp)
+	{
+		s.firstStamp = scan.stamp;
+		if (mapManager_)
+		{
+			SessionRecord session;
+			session.firstStamp = scan.stamp;
+			session.sensor = scan.sensorLabel;
+			session.input = s.source.name();
+			session.startedAt = isoTimeNow();
+			std::lock_guard<std::mutex> lk(s.backend.mapMutex());
+			mapManager_->describeSession(session);
+		}
+	}
+	ScanRecord rec;
+	rec.index = scan.index;
+	rec.stamp = scan.stamp;
+	rec.numPoints = scan.points.size();
+	if (scan.groundTruth)
+		rec.groundTruth = scan.groundTruth->asTPose();
+	rec.ms.read = s.readMs;
+	return rec;
+}
+
+void Engine::pace(RunState& s, const Scan& scan, ScanRecord& rec)
+{
+	if (!s.opts.realtime)
+		return;
+	const double due_s = (scan.stamp - *s.firstStamp) / std::max(s.opts.rate, 1e-6);
+	const auto due =
+	    s.wall0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(due_s));
+	if (Clock::now() < due)
+		std::this_thread::sleep_until(due);
+	else if (std::chrono::duration<double>(Clock::now() - due).count() > 1e-3)
+	{
+		rec.late = true;
+		++s.res.late;
+	}
+}
+
+const RasterFrame* Engine::rasterize(RunState& s, const Scan& scan, ScanRecord& rec)
+{
+	if (!rasterizer_)
+		return nullptr;
+	const auto t0 = Clock::now();
+	rasterizer_->rasterize(scan, s.raster);
+	rec.ms.rasterize = msSince(t0);
+	if (s.opts.onRaster)
+		s.opts.onRaster(scan, s.raster);
+	return &s.raster;
+}
+
+OdometryResult Engine::track(RunState& s, const Scan& scan, const RasterFrame* raster,
+                             ScanRecord& rec)
+{
+	const auto tOdo = Clock::now();
+	OdometryResult odo = odometry_->process(scan, raster);
+	rec.ms.odometry = msSince(tOdo);
+	rec.status = odo.status;
+	rec.inliers = odo.inliers;
+	if (odo.status == TrackingStatus::Lost)
+	{
+		++s.res.lost;
+		if (!(loopDetector_ && raster && relocalizeOnLoss_ && s.anchored))
+			s.lostSinceKf = true;
+		MRPT_LOG_THROTTLE_WARN_STREAM(1.0, "scan " << scan.index << ": tracking lost ("
+		                                           << odo.message << "); using the motion prior");
+	}
+	if (s.haveKf)
+	{
+		// The back end may have moved the keyframe (local BA, a loop): track from there.
+		std::lock_guard<std::mutex> lk(s.backend.graphMutex());
+		s.lastKfPose = s.res.graph.nodes.at(s.lastKf);
+	}
+	if (!s.haveKf)
+		s.currPose = mrpt::poses::CPose3D();
+	else if (odo.T_kf_curr)
+		s.currPose = s.lastKfPose + *odo.T_kf_curr;
+	else
+		s.currPose = s.lastKfPose + (s.T_kf_prev + odo.T_prev_curr);
+	++s.stepsSinceKf;
+	return odo;
+}
+
+// Relocalization (paper, "Re-localization"): at the start of a session with a prior map
+// (seekAnchor, anchor), and whenever tracking is lost (relocalizeAfterLoss), the scan queries
+// the loop detector's database with no pose prior. Found: the pose comes from the map (and, if
+// the matched keyframe is in this run's graph, a constraint to it). Not found: tracking goes
+// on from the motion prior, linked to the past only by a weak edge: a new, disconnected part
+// that a later loop closure can join.
+void Engine::seekAnchor(RunState& s, const Scan& scan, const RasterFrame& raster, ScanRecord& rec)
+{
+	// A session in a prior map: try every scan (or keyframe) until it is found there, then
+	// move everything tracked so far into the map's frame.
+	const auto t0 = Clock::now();
+	// Held until the session is moved into the map's frame: the back end must not see half of
+	// it (it holds this lock for a whole keyframe's work).
+	std::lock_guard<std::mutex> mapLock(s.backend.mapMutex());
+	const Map& map = mapManager_->map();
+	const RelocalizationResult rl = loopDetector_->relocalize(scan, raster, map, s.poses);
+	// Only an earlier session's local map can anchor this one (its own are in its own frame).
+	const bool earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
+	rec.ms.loop += msSince(t0);
+	// Hits count when they are apart in time: neighbouring scans see the same place and would
+	// agree whether it is the right one or not.
+	if (earlier &&
+	    (!s.lastAnchorHitStamp || scan.stamp >= *s.lastAnchorHitStamp + anchorHitSpacing_s_))
+	{
+		// Where this hit puts the session's frame in the map's. One hit is not enough: a wrong
+		// place can match as well as the right one, so the session is anchored only when
+		// engine.anchor_min_agreeing hits agree on it.
+		const mrpt::poses::CPose3D C = rl.pose + (mrpt::poses::CPose3D() - s.currPose);
+		s.anchorHits.push_back(C);
+		s.lastAnchorHitStamp = scan.stamp;
+		std::size_t agreeing = 0;
+		for (const auto& h : s.anchorHits)
+		{
+			// Compared where the vehicle is now: a heading difference then counts as the
+			// offset it makes here, not at the session's origin.
+			agreeing += anchorsAgree((h + s.currPose) - rl.pose);
+		}
+		s.res.anchorHits = s.anchorHits.size();
+		if (agreeing >= static_cast<std::size_t>(anchorMinAgreeing_))
+		{
+			// The anchoring is made at a keyframe (a graph node): this one, or the next.
+			s.anchorReady = RunState::AnchorHit{rl, s.currPose};
+			MRPT_LOG_INFO_STREAM("scan " << scan.index << ": located in the prior map (local map "
+			                             << rl.localMap << ", " << rl.inliers << " inliers; "
+			                             << agreeing << " of " << s.anchorHits.size()
+			                             << " hits agree)");
+		}
+		else
+			MRPT_LOG_INFO_STREAM("scan " << scan.index << ": a place in the prior map (local map "
+			                             << rl.localMap << ", " << rl.inliers << " inliers): "
+			                             << agreeing << " of " << anchorMinAgreeing_
+			                             << " agreeing hits needed to anchor");
+	}
+	else if (!earlier)
+	{
+		++s.res.relocalizationFailures;
+		MRPT_LOG_THROTTLE_WARN_STREAM(1.0, "scan " << scan.index
+		                                           << ": not located in the prior map yet ("
+		                                           << rl.reason << ")");
+	}
+}
+
+std::optional<LoopConstraint> Engine::anchor(RunState& s)
+{
+	// The hit's pose, carried to this scan by the odometry since.
+	const auto& [rl, poseAtHit] = *s.anchorReady;
+	const mrpt::poses::CPose3D sinceHit = s.currPose - poseAtHit;
+	const mrpt::poses::CPose3D here = rl.pose + sinceHit;
+	const mrpt::poses::CPose3D C = here + (mrpt::poses::CPose3D() - s.currPose);
+	{
+		std::lock_guard<std::mutex> lk(s.backend.graphMutex());
+		for (auto& [id, p] : s.res.graph.nodes)
+			p = C + p;
+	}
+	s.lastKfPose = C + s.lastKfPose;
+	s.currPose = here;
+	s.anchored = true;
+	s.res.localized = true;
+	s.backend.setAnchored();
+	// The hit ties the session to the map in the graph (from this keyframe).
+	std::optional<LoopConstraint> edge = relocalizationConstraint(rl);
+	edge->T_from_to = here - rl.keyframePose;
+	++s.res.relocalized;
+	s.anchorReady.reset();
+	return edge;
+}
+
+std::optional<LoopConstraint> Engine::relocalizeAfterLoss(RunState& s, const Scan& scan,
+                                                          const RasterFrame& raster,
+                                                          ScanRecord& rec)
+{
+	const auto t0 = Clock::now();
+	RelocalizationResult rl;
+	{
+		std::lock_guard<std::mutex> lk(s.backend.mapMutex());
+		rl = loopDetector_->relocalize(scan, raster, mapManager_->map(), s.poses);
+	}
+	rec.ms.loop += msSince(t0);
+	std::optional<mrpt::poses::CPose3D> matched;  // the keyframe, when a node of this graph
+	if (const auto* p = s.poses.live(rl.keyframe))
+		matched = *p;
+	if (!rl.found)
+	{
+		++s.res.relocalizationFailures;
+		s.lostSinceKf = true;
+		MRPT_LOG_THROTTLE_WARN_STREAM(1.0, "scan " << scan.index << ": relocalization failed ("
+		                                           << rl.reason
+		                                           << "): a new, disconnected part of the map "
+		                                              "starts here");
+		return std::nullopt;
+	}
+	++s.res.relocalized;
+	MRPT_LOG_INFO_STREAM("scan " << scan.index << ": relocalized in local map " << rl.localMap
+	                             << " (keyframe " << rl.keyframe << ", " << rl.inliers
+	                             << " inliers)");
+	if (!matched)
+	{
+		s.currPose = rl.pose;  // a keyframe of the prior map: already its frame
+		return std::nullopt;
+	}
+	std::optional<LoopConstraint> edge = relocalizationConstraint(rl);
+	s.currPose = *matched + edge->T_from_to;
+	return edge;
+}
+
+void Engine::addKeyframe(RunState& s, const Scan& scan, const RasterFrame* raster,
+                         const OdometryResult& odo, std::optional<LoopConstraint> relocEdge,
+                         ScanRecord& rec)
+{
+	auto& graph = s.res.graph;
+	const bool haveKfBefore = s.haveKf;
+	const mrpt::graphs::TNodeID id = s.nextNode++;
+	{
+		std::lock_guard<std::mutex> lk(s.backend.graphMutex());
+		if (s.haveKf)
+		{
+			// The back end may have moved the last keyframe since this scan read it (only then
+			// recompose: composing a rotation with its own inverse feeds rounding into every
+			// later keyframe).
+			const mrpt::poses::CPose3D kfNow = graph.nodes.at(s.lastKf);
+			if (!(kfNow == s.lastKfPose))
+			{
+				s.currPose = kfNow + (s.currPose - s.lastKfPose);
+				s.lastKfPose = kfNow;
+			}
+		}
+		graph.nodes[id] = s.currPose;
+		if (s.haveKf)
+		{
+			mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+			e.mean = s.currPose - s.lastKfPose;
+			// Information of a chain of n steps is roughly 1/n of one step's; an odometry that
+			// tracks against the keyframe gives the edge's own.
+			e.cov_inv = odo.information;
+			if (!odo.T_kf_curr)
+				e.cov_inv *= 1.0 / static_cast<double>(s.stepsSinceKf);
+			graph.insertEdge(s.lastKf, id, e);
+			if (s.odoSinceKf)
+			{
+				graph.insertEdge(s.lastKf, id, rawlogOdometryEdge(*s.odoSinceKf));
+				++s.res.odometryEdges;
+			}
+		}
+		s.odoSinceKf.reset();
+		if (relocEdge && !graph.nodes.count(relocEdge->from))
+		{
+			// A keyframe of an earlier session: it enters the graph, fixed.
+			if (const auto* prior = s.poses.prior; prior && prior->count(relocEdge->from))
+				s.backend.addFixedNode(relocEdge->from, prior->at(relocEdge->from));
+			else
+				relocEdge.reset();
+		}
+		if (relocEdge)
+		{
+			mrpt::graphs::CNetworkOfPoses3DInf::edge_t e;
+			e.mean = relocEdge->T_from_to;
+			e.cov_inv = relocEdge->information;
+			graph.insertEdge(relocEdge->from, id, e);
+			s.res.uncertainEdges.insert({relocEdge->from, id});
+			++s.res.loopEdges;
+			s.backend.requestOptimization();
+		}
+	}
+	s.lastKf = id;
+	s.lastKfPose = s.currPose;
+	s.haveKf = true;
+	s.stepsSinceKf = 0;
+	rec.keyframe = true;
+	++s.res.keyframes;
+
+	detail::KeyframeJob job;
+	job.kf = KeyframeInfo{id,         scan.index,       scan.stamp,
+	                      s.currPose, odo.keyframeData, s.lostSinceKf && haveKfBefore,
+	                      {}};
+	if (relocEdge)
+		job.kf.locatedAt = relocEdge->from;
+	s.lostSinceKf = false;
+	if (job.kf.data)
+	{
+		job.kf.data->id = id;
+		job.kf.data->scanIndex = scan.index;
+		job.kf.data->stamp = scan.stamp;
+		job.kf.data->pose = s.currPose;
+	}
+	job.record = s.res.scans.size();
+	if (s.opts.realtime)
+	{
+		// The worker keeps its own copies: the tracking goes on with the next scan.
+		job.scan = std::make_shared<const Scan>(scan);
+		if (raster)
+		{
+			auto copy = std::make_shared<RasterFrame>(*raster);
+			copy->image = raster->image.makeDeepCopy();  // CImage copies share pixels
+			job.raster = copy;
+		}
+	}
+	else
+	{
+		// Done before submit() returns: no copy needed.
+		job.scan = std::shared_ptr<const Scan>(&scan, [](const Scan*) {});
+		if (raster)
+			job.raster = std::shared_ptr<const RasterFrame>(raster, [](const RasterFrame*) {});
+	}
+	if (mapManager_ || loopDetector_)
+		s.backend.submit(std::move(job));
+	if (!s.opts.realtime)
+	{
+		// Local BA or an optimization may have moved this keyframe.
+		std::lock_guard<std::mutex> lk(s.backend.graphMutex());
+		s.lastKfPose = s.currPose = graph.nodes.at(id);
+	}
+}
+
+void Engine::recordScan(RunState& s, ScanRecord& rec, Clock::time_point tScan)
+{
+	rec.kfNode = s.lastKf;
+	const mrpt::poses::CPose3D T_kf_scan = s.currPose - s.lastKfPose;
+	rec.T_kf_scan = T_kf_scan.asTPose();
+	rec.onlinePose = s.currPose.asTPose();
+	// Exactly the identity on a keyframe: composing a rotation with its own inverse would feed
+	// rounding back into every following scan.
+	s.T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : T_kf_scan;
+	rec.ms.total = msSince(tScan) + s.readMs;
+	rec.rssMb = static_cast<float>(currentRssMb());
+	s.res.scans.push_back(rec);
+	if (s.opts.onScan)
+		s.opts.onScan(s.res.scans.back(), s.source.progress());
+}
+
+void Engine::finishRun(RunState& s)
+{
+	auto& res = s.res;
+	res.stopReason = s.source.stopReason();
 	try
 	{
-		backend.finish();
+		s.backend.finish();
 	}
 	catch (const std::exception& e)
 	{
 		if (res.error.empty())
 			res.error = std::string("finishing the map: ") + e.what();
 	}
-	if (res.error.empty() && !backend.error().empty())
-		res.error = "mapping or loop closing: " + backend.error();
-	for (const auto& [record, t] : backend.timings())
+	if (res.error.empty() && !s.backend.error().empty())
+		res.error = "mapping or loop closing: " + s.backend.error();
+	for (const auto& [record, t] : s.backend.timings())
 		if (record < res.scans.size())
 		{
 			res.scans[record].ms.mapping += t.mapping;
@@ -740,21 +821,21 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 		}
 	if (loopDetector_)
 		res.loopDecisions = loopDetector_->decisions();
-	res.cpuBackend_s = backend.cpuSeconds();
-	res.memoryTrim_ms = backend.trimMs();
-	res.cpuTracking_s = detail::threadCpuSeconds() - cpu0;
+	res.cpuBackend_s = s.backend.cpuSeconds();
+	res.memoryTrim_ms = s.backend.trimMs();
+	res.cpuTracking_s = detail::threadCpuSeconds() - s.cpu0;
 
+	auto& graph = res.graph;
 	if (optimizer_ && optimizeAtEnd_ && (res.loopEdges > 0 || res.odometryEdges > 0))
 	{
 		MRPT_LOG_INFO_STREAM("optimizing the pose graph: " << graph.nodes.size() << " nodes, "
 		                                                   << graph.edges.size() << " edges");
-		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges, backend.fixedNodes());
+		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges, s.backend.fixedNodes());
 	}
 	res.poses.reserve(res.scans.size());
 	for (const auto& r : res.scans)
 		res.poses.push_back(graph.nodes.at(r.kfNode) + mrpt::poses::CPose3D(r.T_kf_scan));
-	res.wall_s = std::chrono::duration<double>(Clock::now() - wall0).count();
-	return res;
+	res.wall_s = std::chrono::duration<double>(Clock::now() - s.wall0).count();
 }
 
 }  // namespace rasterslam

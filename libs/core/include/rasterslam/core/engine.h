@@ -6,6 +6,7 @@
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/scan_source.h>
 
+#include <chrono>
 #include <functional>
 #include <optional>
 #include <string>
@@ -170,6 +171,41 @@ class Engine : public mrpt::system::COutputLogger
 	const mrpt::containers::yaml& configInForce() const { return inForce_; }
 
    private:
+	// The stages of run(), in the order the data flows (engine.cpp).
+	struct RunState;
+	using Clock = std::chrono::steady_clock;
+	/** The next scan within --first/--last, or none at the end of the input. */
+	std::optional<Scan> readScan(RunState& s);
+	/** The input's own odometry (wheels, visual) composed since the last keyframe. */
+	void addInputOdometry(RunState& s, const Scan& scan);
+	/** False for a scan to drop (non-finite points, too few points); sets the error when
+	 *  such a scan ends the run. */
+	bool admitScan(RunState& s, Scan& scan);
+	/** The scan's record; the session's record on the first scan. */
+	ScanRecord beginScan(RunState& s, const Scan& scan);
+	/** --realtime: waits for the scan's time; counts it late when past it. */
+	void pace(RunState& s, const Scan& scan, ScanRecord& rec);
+	/** The elevation image (null without a rasterizer). */
+	const RasterFrame* rasterize(RunState& s, const Scan& scan, ScanRecord& rec);
+	/** Odometry: the scan's pose from the last keyframe's (as the back end has it now). */
+	OdometryResult track(RunState& s, const Scan& scan, const RasterFrame* raster, ScanRecord& rec);
+	/** A session in a prior map: one more hit towards anchoring it. */
+	void seekAnchor(RunState& s, const Scan& scan, const RasterFrame& raster, ScanRecord& rec);
+	/** Moves the session into the prior map's frame; the relocalization edge that ties it. */
+	std::optional<LoopConstraint> anchor(RunState& s);
+	/** Tracking lost: the scan located in the map with no prior, and the edge when the
+	 *  keyframe it matched is in this run's graph. */
+	std::optional<LoopConstraint> relocalizeAfterLoss(RunState& s, const Scan& scan,
+	                                                  const RasterFrame& raster, ScanRecord& rec);
+	/** A graph node with its odometry (and relocalization) edges, handed to the back end. */
+	void addKeyframe(RunState& s, const Scan& scan, const RasterFrame* raster,
+	                 const OdometryResult& odo, std::optional<LoopConstraint> relocEdge,
+	                 ScanRecord& rec);
+	/** The scan's pose relative to its keyframe, its timings, and the progress callback. */
+	void recordScan(RunState& s, ScanRecord& rec, Clock::time_point tScan);
+	/** Finishes the back end, optimizes the whole graph and computes every scan's pose. */
+	void finishRun(RunState& s);
+
 	/** Two anchorings agree: their difference `d` (where the vehicle is) is within
 	 *  engine.anchor_agree_m and anchor_agree_deg. */
 	bool anchorsAgree(const mrpt::poses::CPose3D& d) const;
