@@ -6,7 +6,7 @@ JOBS ?= $(shell nproc)
 DEMO_SCENARIO ?= rawlogs/town-loop.yaml
 DEMO_RAWLOG ?= $(BUILD)/rawlogs/town-loop.rawlog
 DEMO_OUT ?= out/demo
-DEMO_CONFIG ?= share/rasterslam/config/slam.yaml
+DEMO_CONFIG ?= slam
 
 .PHONY: all deps configure build demo test clean
 
