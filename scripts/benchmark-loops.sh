@@ -14,7 +14,8 @@ bin="$BUILD/bin"
 vocab="$here/share/rasterslam/vocab/elevation-k10l4.vocab"
 mkdir -p "$WORK"
 
-json() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" <<<"$1" | head -n1; }
+# A value of a rasterslam-eval --json object by its jq path: json "$j" .ate_rmse_m (empty for null).
+json() { jq -r "$2 // empty" <<<"$1"; }
 variant() {  # variant NAME SEARCH VOCAB -> config file
   local cfg="$WORK/$1.yaml"
   sed -e "s#vocabulary_file: ../vocab/elevation-k10l4.vocab#vocabulary_file: \"$3\"#" \
@@ -28,7 +29,7 @@ for scen in town-vlp16 town-loop; do
   [ -f "$rawlog" ] || "$bin/rasterslam-sim" --scenario "$here/rawlogs/$scen.yaml" -o "$rawlog" >/dev/null 2>&1
   "$bin/rasterslam" run --rawlog "$rawlog" --config "$here/share/rasterslam/config/tracking.yaml" --out "$WORK/$scen-odometry" --quiet >/dev/null
   odo=$("$bin/rasterslam-eval" traj --gt "$WORK/$scen-odometry/groundtruth.tum" --est "$WORK/$scen-odometry/trajectory.tum" --json)
-  odo_ate=$(json "$odo" ate_rmse_m)
+  odo_ate=$(json "$odo" .ate_rmse_m)
   echo "$scen ($(grep -c . "$WORK/$scen-odometry/trajectory.tum") scans): odometry only, ATE $(printf '%.3f' "$odo_ate") m"
   printf '  %-22s %5s %5s %6s %6s %6s | %9s %9s | %7s %6s\n' method queries pos precision recall "F1max" "ms/query" "max ms" "ATE m" "/odo"
   for v in "bow:bow:$vocab" "bow-online:bow:" "keyframes:keyframes:$vocab" "localmaps:localmaps:$vocab"; do
@@ -37,11 +38,10 @@ for scen in town-vlp16 town-loop; do
     "$bin/rasterslam" run --rawlog "$rawlog" --config "$(variant "$scen-$name" "$search" "$voc")" --out "$out" --quiet >/dev/null
     l=$("$bin/rasterslam-eval" loops --loops "$out/loops.txt" --gt "$out/groundtruth.tum" --json)
     t=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json)
-    det=$(grep -o '"detector": {[^}]*}' <<<"$l"); f1=$(grep -o '"f1_max": {[^}]*}' <<<"$l")
     ms=$(awk -F, 'NR>1 && $6==1 {s+=$12; n++; if($12>m)m=$12} END{printf "%.2f %.2f", (n?s/n:0), m}' "$out/timings.csv")
-    ate=$(json "$t" ate_rmse_m)
-    printf '  %-22s %5s %5s %6.3f %6.3f %6.3f | %9s %9s | %7.3f %6.2f\n' "$name" "$(json "$l" queries)" "$(json "$l" positives)" \
-      "$(json "$det" precision)" "$(json "$det" recall)" "$(json "$f1" f1)" ${ms} "$ate" "$(awk -v a="$ate" -v b="$odo_ate" 'BEGIN{print a/b}')"
+    ate=$(json "$t" .ate_rmse_m)
+    printf '  %-22s %5s %5s %6.3f %6.3f %6.3f | %9s %9s | %7.3f %6.2f\n' "$name" "$(json "$l" .queries)" "$(json "$l" .positives)" \
+      "$(json "$l" .detector.precision)" "$(json "$l" .detector.recall)" "$(json "$l" .f1_max.f1)" ${ms} "$ate" "$(awk -v a="$ate" -v b="$odo_ate" 'BEGIN{print a/b}')"
   done
   echo
 done

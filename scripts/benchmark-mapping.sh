@@ -16,8 +16,9 @@ cfgdir="$here/share/rasterslam/config"
 mkdir -p "$WORK"
 
 yamlv() { sed -n "s/^ *$2: *\([-0-9.eE+]*\).*/\1/p" "$1" | head -n1; }
-json() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" <<<"$1" | head -n1; }
-ate() { json "$("$bin/rasterslam-eval" traj --gt "$1/groundtruth.tum" --est "$1/${2:-trajectory.tum}" --json)" ate_rmse_m; }
+# A value of a rasterslam-eval --json object by its jq path: json "$j" .ate_rmse_m (empty for null).
+json() { jq -r "$2 // empty" <<<"$1"; }
+ate() { json "$("$bin/rasterslam-eval" traj --gt "$1/groundtruth.tum" --est "$1/${2:-trajectory.tum}" --json)" .ate_rmse_m; }
 # slam.yaml with the vocabulary made absolute and sed edits applied: variant NAME [SED ...]
 variant() {
   local name=$1; shift
@@ -84,11 +85,10 @@ for in in "${inputs[@]}"; do
   k=$((n * 2 / 21)); [ "$k" -ge 1 ] || k=1
   t=$("$bin/rasterslam-eval" timings "$WORK/$name-slam" --label "$name" --after-scan "$k" --json \
       --plot "$WORK/$name-slam/timings.png")
-  tot=$(sed -n 's/.*"total_ms": {\([^}]*\)}.*/\1/p' <<<"$t")
-  aft=$(sed -n 's/.*"after_scan": {\([^}]*\)}.*/\1/p' <<<"$t")
   printf '  %-26s RSS %.1f MB by scan %d, %.1f MB max in the last 10%% (x%.3f), %.2f MB/1000 scans; ms/scan %.2f first 10%%, %.2f last 10%%\n' \
-    "slam over the run" "$(json "$aft" rss_max_mb)" "$k" "$(json "$t" rss_last_max_mb)" "$(json "$aft" last_ratio)" \
-    "$(json "$t" rss_growth_mb_per_1000_scans)" "$(json "$tot" first)" "$(json "$tot" last)"
+    "slam over the run" "$(json "$t" '.runs[0].after_scan.rss_max_mb')" "$k" "$(json "$t" '.runs[0].rss_last_max_mb')" \
+    "$(json "$t" '.runs[0].after_scan.last_ratio')" "$(json "$t" '.runs[0].rss_growth_mb_per_1000_scans')" \
+    "$(json "$t" '.runs[0].total_ms.first')" "$(json "$t" '.runs[0].total_ms.last')"
   run "$rawlog" "$wrong" "$WORK/$name-wrong"
   row "5 % loops wrong ($(yamlv "$WORK/$name-wrong/run.yaml" corrupted_loops_test_hook || true))" "$WORK/$name-wrong" "$odo"
   run "$rawlog" "$wrong30" "$WORK/$name-wrong30"
@@ -108,9 +108,9 @@ for in in "${inputs[@]}"; do
     out="$WORK/$name-ba-$v"
     run "$rawlog" "$cfg" "$out" --map-out "$out/map" --overwrite
     j=$("$bin/rasterslam-eval" localmaps --map "$out/map" --gt "$out/groundtruth.tum" --json)
-      printf '  %-20s %-7s %10.4f %10.4f %10.4f %10.4f %10.4f %s\n' "$name" "$v" "$(json "$j" trans_err_mean_m)" \
-      "$(json "$j" horizontal_err_mean_m)" "$(json "$j" vertical_err_mean_m)" "$(json "$j" rot_err_mean_deg)" \
-      "$(json "$j" yaw_err_mean_deg)" "$([ $v = on ] && printf '%.3f -> %.3f' "$(json "$j" ba_rms_before_m)" "$(json "$j" ba_rms_after_m)")"
+      printf '  %-20s %-7s %10.4f %10.4f %10.4f %10.4f %10.4f %s\n' "$name" "$v" "$(json "$j" .trans_err_mean_m)" \
+      "$(json "$j" .horizontal_err_mean_m)" "$(json "$j" .vertical_err_mean_m)" "$(json "$j" .rot_err_mean_deg)" \
+      "$(json "$j" .yaw_err_mean_deg)" "$([ $v = on ] && printf '%.3f -> %.3f' "$(json "$j" .ba_rms_before_m)" "$(json "$j" .ba_rms_after_m)")"
   done
 done
 
@@ -138,7 +138,7 @@ if [ -d "$DATA" ]; then
   j=$("$bin/rasterslam-eval" traj --gt "$WORK/kitti-both-groundtruth.tum" --est "$WORK/kitti-both-trajectory.tum" --json)
   printf '  session 2: located %s after %s hits, %s loop edges to session 1; interleaved ATE %.3f m, consecutive frames %.3f m (mean)\n' \
     "$(sed -n 's/^ *localized_in_prior_map: *//p' "$WORK/kitti-s2/run.yaml")" "$(yamlv "$WORK/kitti-s2/run.yaml" prior_map_hits)" \
-    "$(yamlv "$WORK/kitti-s2/run.yaml" prior_map_loop_edges)" "$(json "$j" ate_rmse_m)" "$(json "$j" rpe_trans_mean_m)"
+    "$(yamlv "$WORK/kitti-s2/run.yaml" prior_map_loop_edges)" "$(json "$j" .ate_rmse_m)" "$(json "$j" .rpe_trans_mean_m)"
   # The same two halves as two maps built separately, joined by `map merge`: each session's
   # keyframes in the merged map against the truth.
   rm -rf "$WORK/kitti-map-even" "$WORK/kitti-map-odd" "$WORK/kitti-merged" "$WORK/kitti-merged-x"
@@ -150,7 +150,7 @@ if [ -d "$DATA" ]; then
   (echo "# timestamp tx ty tz qx qy qz qw"; grep -hv '^#' "$WORK/kitti-merged-x"/keyframes-s*.tum | sort -g) > "$WORK/kitti-merged-kf.tum"
   j=$("$bin/rasterslam-eval" traj --gt "$WORK/kitti-both-groundtruth.tum" --est "$WORK/kitti-merged-kf.tum" --json)
   printf '  map merge: %s\n  merged keyframes of both sessions: ATE %.3f m, consecutive keyframes %.3f m (mean), %s keyframes\n' \
-    "${m#rasterslam: }" "$(json "$j" ate_rmse_m)" "$(json "$j" rpe_trans_mean_m)" "$(json "$j" n_associated)"
+    "${m#rasterslam: }" "$(json "$j" .ate_rmse_m)" "$(json "$j" .rpe_trans_mean_m)" "$(json "$j" .n_associated)"
 
   echo
   echo "== --realtime on the KITTI sample: late scans after the first, tracking p95 (ms)"

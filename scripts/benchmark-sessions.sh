@@ -15,8 +15,8 @@ rm -rf "$WORK"
 mkdir -p "$WORK"
 
 yamlv() { sed -n "s/^ *$2: *\([-0-9.eE+a-z]*\).*/\1/p" "$1" | head -n1; }
-jsons() { sed -n "s/.*\"$2\": \"\([^\"]*\)\".*/\1/p" <<<"$1" | head -n1; }
-jsonv() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" <<<"$1" | head -n1; }
+# A value of a rasterslam-eval --json object by its jq path: json "$j" .ate_rmse_m (empty for null).
+json() { jq -r "$2 // empty" <<<"$1"; }
 cfg="$WORK/slam.yaml"
 sed -e "s#vocabulary_file: ../vocab/#vocabulary_file: $here/share/rasterslam/vocab/#" \
   "$here/share/rasterslam/config/slam.yaml" > "$cfg"
@@ -77,12 +77,12 @@ for i in "${!routes[@]}"; do
   # Session 1 defines the map frame: its alignment to the world is every session's.
   if [ -z "$align" ]; then
     j=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json)
-    align=$(jsons "$j" T_gt_est)
+    align=$(json "$j" .T_gt_est)
   fi
   j=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json --align "$align")
   located=$([ "$n" = 1 ] && echo origin || yamlv "$out/run.yaml" localized_in_prior_map)
   printf '%-8s %-6s %6s %-8s %9s %9.3f %9.1f %10.2f %10.2f %9.2f\n' "$n" "$lidar" "$scans" "$located" \
-    "$(yamlv "$out/run.yaml" prior_map_hits)" "$(jsonv "$j" ate_rmse_m)" "$(yamlv "$out/run.yaml" peak_rss_mb)" \
+    "$(yamlv "$out/run.yaml" prior_map_hits)" "$(json "$j" .ate_rmse_m)" "$(yamlv "$out/run.yaml" peak_rss_mb)" \
     "$(yamlv "$out/run.yaml" map_memory_mb)" "$(du -sm "$map" | cut -f1)" \
     "$(yamlv "$out/run.yaml" ms_per_scan_median)"
   rm -f "$WORK/s$n.rawlog"

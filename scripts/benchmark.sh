@@ -21,7 +21,8 @@ command -v taskset >/dev/null 2>&1 && PIN="taskset -c 0"
 [ $# -gt 0 ] || set -- "$here/share/rasterslam/config/tracking.yaml" "$here/share/rasterslam/config/gicp-baseline.yaml"
 mkdir -p "$WORK"
 
-json() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" <<<"$1"; }
+# A value of a rasterslam-eval --json object by its jq path: json "$j" .ate_rmse_m (empty for null).
+json() { jq -r "$2 // empty" <<<"$1"; }
 yamlv() { sed -n "s/^ *$2: *\([-0-9.eE+]*\).*/\1/p" "$1" | head -n1; }
 # median of column $2 (1-based) of a CSV with a header
 colmed() { awk -F, -v c="$2" 'NR>1{print $c}' "$1" | sort -g | awk '{a[NR]=$1} END{if(NR) print a[int((NR+1)/2)]; else print 0}'; }
@@ -38,8 +39,8 @@ row() {  # row NAME OUTDIR JSON1 JSON2
   printf '%-16s %7.1f %7.1f | %6.2f %6.2f %6.2f %6.2f | %7.0f | %7.3f %9.4f %7.3f | %7s %7s\n' "$1" \
     "$(yamlv "$y" ms_per_scan_median)" "$(yamlv "$y" ms_per_scan_p95)" \
     "$(colmed "$t" 8)" "$(colmed "$t" 9)" "$(colmed "$t" 10)" "$other" "$(yamlv "$y" peak_rss_mb)" \
-    "$(json "$3" rel_trans_pct)" "$(json "$3" rel_rot_deg_per_m)" "$(json "$3" ate_rmse_m)" \
-    "${4:+$(printf '%.3f' "$(json "$4" rel_trans_pct)")}" "${4:+$(printf '%.3f' "$(json "$4" ate_rmse_m)")}"
+    "$(json "$3" .rel_trans_pct)" "$(json "$3" .rel_rot_deg_per_m)" "$(json "$3" .ate_rmse_m)" \
+    "${4:+$(printf '%.3f' "$(json "$4" .rel_trans_pct)")}" "${4:+$(printf '%.3f' "$(json "$4" .ate_rmse_m)")}"
 }
 
 rate_note() {  # speed ratio of the first config against the last

@@ -6,27 +6,23 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <regex>
 
+#include "test_json.h"
 #include "test_support.h"
 
 using namespace rasterslam;
 namespace fs = std::filesystem;
+
+using test::jsonNumber;
 
 namespace
 {
 std::string gicpConfig()
 {
 	return test::sourcePath("share/rasterslam/config/gicp-baseline.yaml");
-}
-
-double jsonNumber(const std::string& json, const std::string& key)
-{
-	std::smatch m;
-	if (!std::regex_search(json, m, std::regex("\"" + key + "\": ([-0-9.eE+]+)")))
-		return std::nan("");
-	return std::stod(m[1]);
 }
 
 std::size_t lineCount(const fs::path& p)
@@ -311,7 +307,7 @@ TEST(EndToEnd, PaperPipelineIsDeterministicAndOutputsDoNotMix)
 	}
 	// A later run without a loop detector into the same folder leaves no loops.txt of the first.
 	const auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + kitti50() +
-	                                " --last 5 --quiet --out " + a.string());
+	                                " --config tracking --last 5 --quiet --out " + a.string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_FALSE(fs::exists(a / "loops.txt"));
 	EXPECT_EQ(lineCount(a / "trajectory.kitti"), 6u);

@@ -1,13 +1,19 @@
 // Trajectory metrics: association, ATE, RPE, the KITTI devkit's relative errors, the CLI.
 #include <rasterslam/eval/trajectory_metrics.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <random>
-#include <regex>
 
+#include "test_json.h"
 #include "test_support.h"
 
 using namespace rasterslam;
+
+using test::number;
+using test::parseJson;
 
 namespace
 {
@@ -238,15 +244,6 @@ int runCommand(const std::string& cmd, std::string& out)
 	return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-double jsonValue(const std::string& json, const std::string& key)
-{
-	std::smatch m;
-	const std::regex re("\"" + key + "\": ([-0-9.eE+]+)");
-	if (!std::regex_search(json, m, re))
-		return std::nan("");
-	return std::stod(m[1]);
-}
-
 std::string evalBin()
 {
 	const std::string bin = std::string(RASTERSLAM_BIN_DIR) + "/rasterslam-eval";
@@ -268,25 +265,27 @@ TEST(EvalCli, OfficialVersusSemanticKittiOnTheShortClip)
 
 	// Every frame a first frame: the data notes' anchor (official vs SemanticKITTI, 1.83 %).
 	ASSERT_EQ(runCommand(base + " --step 1", out), 0) << base << "\n" << out;
-	const double rte1 = jsonValue(out, "rel_trans_pct");
+	nlohmann::json j = parseJson(out);
+	const double rte1 = number(j, "rel_trans_pct");
 	std::printf("official vs SemanticKITTI, step 1: RTE %.3f %%, RRE %.5f deg/m, ATE %.3f m\n",
-	            rte1, jsonValue(out, "rel_rot_deg_per_m"), jsonValue(out, "ate_rmse_m"));
+	            rte1, number(j, "rel_rot_deg_per_m"), number(j, "ate_rmse_m"));
 	EXPECT_GE(rte1, 1.5) << out;
 	EXPECT_LE(rte1, 2.2) << out;
 
 	// The devkit's own step (10 frames): 37 segments only, so a different figure. Reference
 	// values from a line-by-line plain-Python transcription of the devkit (full 4x4 inverses).
 	ASSERT_EQ(runCommand(base, out), 0) << base << "\n" << out;
-	const double rte = jsonValue(out, "rel_trans_pct");
-	const double ate = jsonValue(out, "ate_rmse_m");
+	j = parseJson(out);
+	const double rte = number(j, "rel_trans_pct");
+	const double ate = number(j, "ate_rmse_m");
 	std::printf(
 	    "official vs SemanticKITTI, step 10: RTE %.3f %%, RRE %.5f deg/m, ATE %.3f m, path %.2f "
 	    "m\n",
-	    rte, jsonValue(out, "rel_rot_deg_per_m"), ate, jsonValue(out, "path_length_m"));
+	    rte, number(j, "rel_rot_deg_per_m"), ate, number(j, "path_length_m"));
 	EXPECT_NEAR(rte, 2.2803, 0.001) << out;
-	EXPECT_NEAR(jsonValue(out, "rel_rot_deg_per_m"), 0.021481, 1e-5) << out;
-	EXPECT_EQ(jsonValue(out, "rel_count"), 37);
-	EXPECT_EQ(jsonValue(out, "n_associated"), 101);
+	EXPECT_NEAR(number(j, "rel_rot_deg_per_m"), 0.021481, 1e-5) << out;
+	EXPECT_EQ(number(j, "rel_count"), 37) << out;
+	EXPECT_EQ(number(j, "n_associated"), 101) << out;
 	// The two disagree by 1.1 m over the first 10 frames (data README): ATE is decimetres.
 	EXPECT_GT(ate, 0.1);
 	EXPECT_LT(ate, 1.0);
@@ -296,25 +295,178 @@ TEST(EvalCli, OfficialVersusSemanticKittiOnTheShortClip)
 	                            "/poses_semantickitti.txt --est " + dir +
 	                            "/poses_official.txt --json";
 	ASSERT_EQ(runCommand(cmdLong, out), 0) << out;
-	EXPECT_NE(out.find("\"rel_trans_pct\": null"), std::string::npos) << out;
-	EXPECT_NE(out.find("try --segments 10:80:10"), std::string::npos) << out;
+	j = parseJson(out);
+	ASSERT_TRUE(j.contains("rel_trans_pct")) << out;
+	EXPECT_TRUE(j["rel_trans_pct"].is_null()) << out;
+	ASSERT_TRUE(j.contains("note") && j["note"].is_string()) << out;
+	EXPECT_NE(j["note"].get<std::string>().find("try --segments 10:80:10"), std::string::npos)
+	    << out;
+}
+
+TEST(EvalCli, JsonHasEveryFigureAndNullForNone)
+{
+	const test::ScopedTempDir dir("evaljson");
+	const auto gt = planarDrive(60, 0.8, false, 7);
+	io::Trajectory est = gt;
+	for (std::size_t i = 0; i < est.size(); ++i)
+		est[i].pose.translation().x() += 0.01 * static_cast<double>(i % 3);
+	io::saveTrajectoryTum((dir / "gt.tum").string(), gt);
+	io::saveTrajectoryTum((dir / "est.tum").string(), est);
+	const std::string base = evalBin() + " traj --gt " + (dir / "gt.tum").string() + " --est " +
+	                         (dir / "est.tum").string() + " --json";
+	std::string out;
+
+	// Segments of 10..50 m fit the 60 m drive; 100 m does not: its figures are null.
+	ASSERT_EQ(runCommand(base + " --segments 10,50,100", out), 0) << out;
+	EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << "one line:\n" << out;
+	nlohmann::json j = parseJson(out);
+	for (const char* key : {"gt",
+	                        "est",
+	                        "n_gt",
+	                        "n_est",
+	                        "n_associated",
+	                        "association",
+	                        "path_length_m",
+	                        "ate_rmse_m",
+	                        "ate_mean_m",
+	                        "ate_median_m",
+	                        "ate_max_m",
+	                        "ate_alignment",
+	                        "T_gt_est",
+	                        "rpe_pairs",
+	                        "rpe_trans_rmse_m",
+	                        "rpe_trans_mean_m",
+	                        "rpe_rot_rmse_deg",
+	                        "rpe_rot_mean_deg",
+	                        "segments",
+	                        "step",
+	                        "rel_count",
+	                        "rel_trans_pct",
+	                        "rel_rot_deg_per_m",
+	                        "per_length",
+	                        "note"})
+		EXPECT_TRUE(j.contains(key)) << key << " missing in " << out;
+	EXPECT_EQ(j.value("gt", ""), (dir / "gt.tum").string());
+	EXPECT_EQ(number(j, "n_associated"), static_cast<double>(gt.size())) << out;
+	EXPECT_EQ(j.value("association", ""), "stamp") << out;
+	EXPECT_EQ(j.value("ate_alignment", ""), "se3") << out;
+	EXPECT_GT(number(j, "ate_rmse_m"), 0.0) << out;
+	EXPECT_LT(number(j, "ate_rmse_m"), 0.02) << out;
+	EXPECT_EQ(j["segments"], nlohmann::json({10, 50, 100})) << out;
+	EXPECT_EQ(number(j, "step"), 10) << out;
+	EXPECT_TRUE(j["note"].is_null()) << out;  // some segment fits
+	ASSERT_TRUE(j["per_length"].is_array() && j["per_length"].size() == 3) << out;
+	const auto& fits = j["per_length"][0];
+	EXPECT_EQ(number(fits, "length_m"), 10) << out;
+	EXPECT_GT(number(fits, "count"), 0) << out;
+	EXPECT_TRUE(fits["t_err_pct"].is_number()) << out;
+	const auto& none = j["per_length"][2];
+	EXPECT_EQ(number(none, "length_m"), 100) << out;
+	EXPECT_EQ(number(none, "count"), 0) << out;
+	EXPECT_TRUE(none["t_err_pct"].is_null()) << out;
+	EXPECT_TRUE(none["r_err_deg_per_m"].is_null()) << out;
+
+	// T_gt_est is a string --align takes back: the same ATE, marked "given".
+	ASSERT_TRUE(j["T_gt_est"].is_string()) << out;
+	const double ate = number(j, "ate_rmse_m");
+	ASSERT_EQ(runCommand(base + " --align " + j["T_gt_est"].get<std::string>(), out), 0) << out;
+	j = parseJson(out);
+	EXPECT_EQ(j.value("ate_alignment", ""), "given") << out;
+	EXPECT_NEAR(number(j, "ate_rmse_m"), ate, 1e-6) << out;
 }
 
 TEST(EvalCli, ErrorsGiveNonZeroExitCodes)
 {
-	const auto dir = test::tempDir("evalcli");
+	const test::ScopedTempDir dir("evalcli");
 	std::string out;
+	// A file that does not exist is bad input: exit 1, named in the message.
 	const std::string missing = (dir / "missing.txt").string();
 	EXPECT_EQ(runCommand(evalBin() + " traj --gt " + missing + " --est " + missing + " 2>&1", out),
 	          1);
-	EXPECT_NE(out.find(missing), std::string::npos) << out;
-	EXPECT_EQ(runCommand(evalBin() + " traj --gt a --est b --bogus 2>&1", out), 2);
-	EXPECT_NE(out.find("--bogus"), std::string::npos) << out;
-	EXPECT_EQ(runCommand(evalBin() + " traj --gt a 2>&1", out), 2);
-	EXPECT_NE(out.find("--est"), std::string::npos) << out;
+	EXPECT_NE(out.find("rasterslam-eval traj: error: --gt: File does not exist: " + missing),
+	          std::string::npos)
+	    << out;
+	// A file that is no trajectory: exit 1, the file named.
+	const std::string bad = (dir / "bad.txt").string();
+	io::writeFileAtomically(bad, "not a trajectory\n");
+	EXPECT_EQ(runCommand(evalBin() + " traj --gt " + bad + " --est " + bad + " 2>&1", out), 1);
+	EXPECT_NE(out.find("rasterslam-eval traj: error: '" + bad + "'"), std::string::npos) << out;
 	EXPECT_EQ(runCommand(evalBin() + " nosuchcommand 2>&1", out), 2);
-	EXPECT_EQ(runCommand(evalBin() + " --help", out), 0);
-	EXPECT_NE(out.find("traj"), std::string::npos) << out;
-	EXPECT_EQ(runCommand(evalBin() + " traj --help", out), 0);
-	EXPECT_NE(out.find("--segments"), std::string::npos) << out;
+	EXPECT_NE(out.find("rasterslam-eval: unknown command 'nosuchcommand'"), std::string::npos)
+	    << out;
+	EXPECT_EQ(runCommand(evalBin() + " 2>&1", out), 2);
+	EXPECT_NE(out.find("(see rasterslam-eval --help)"), std::string::npos) << out;
+}
+
+TEST(EvalCli, HelpAndVersionExitZero)
+{
+	std::string out;
+	EXPECT_EQ(runCommand(evalBin() + " --help", out), 0) << out;
+	EXPECT_NE(out.find("rasterslam-eval"), std::string::npos) << out;
+	for (const char* cmd : {"traj", "loops", "localmaps", "timings"})
+		EXPECT_NE(out.find(std::string("\n  ") + cmd + " "), std::string::npos) << cmd << "\n"
+		                                                                        << out;
+	EXPECT_NE(out.find("Exit codes"), std::string::npos) << out;
+	EXPECT_EQ(runCommand(evalBin() + " help", out), 0) << out;
+	EXPECT_NE(out.find("Usage: rasterslam-eval"), std::string::npos) << out;
+
+	EXPECT_EQ(runCommand(evalBin() + " --version", out), 0) << out;
+	EXPECT_EQ(out.rfind("rasterslam-eval ", 0), 0u) << out;
+
+	EXPECT_EQ(runCommand(evalBin() + " traj --help", out), 0) << out;
+	EXPECT_NE(out.find("Usage: rasterslam-eval traj"), std::string::npos) << out;
+	for (const char* opt :
+	     {"--gt", "--est", "--calib", "--est-calib", "--gt-format", "--est-format", "--times",
+	      "--associate", "--align", "--max-dt", "--segments", "--step", "--json"})
+		EXPECT_NE(out.find(std::string("  ") + opt + " "), std::string::npos) << opt << "\n" << out;
+	// The defaults are shown.
+	EXPECT_NE(out.find("--segments SPEC=100:800:100"), std::string::npos) << out;
+	EXPECT_NE(out.find("--step N=10"), std::string::npos) << out;
+}
+
+TEST(EvalCli, MissingRequiredOptionIsAUsageError)
+{
+	const test::ScopedTempDir dir("evalcli");
+	const std::string f = (dir / "t.tum").string();
+	io::writeFileAtomically(f, "0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n");
+	std::string out;
+	EXPECT_EQ(runCommand(evalBin() + " traj --gt " + f + " 2>&1", out), 2);
+	EXPECT_NE(out.find("rasterslam-eval traj: --est is required"), std::string::npos) << out;
+	EXPECT_NE(out.find("(see rasterslam-eval traj --help)"), std::string::npos) << out;
+	EXPECT_EQ(runCommand(evalBin() + " traj --est " + f + " 2>&1", out), 2);
+	EXPECT_NE(out.find("--gt is required"), std::string::npos) << out;
+	EXPECT_EQ(runCommand(evalBin() + " traj 2>&1", out), 2);
+	EXPECT_NE(out.find("is required"), std::string::npos) << out;
+}
+
+TEST(EvalCli, UnknownOptionAndBadValuesAreUsageErrors)
+{
+	const test::ScopedTempDir dir("evalcli");
+	const std::string f = (dir / "t.tum").string();
+	io::writeFileAtomically(f, "0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n");
+	const std::string base = evalBin() + " traj --gt " + f + " --est " + f;
+	std::string out;
+	EXPECT_EQ(runCommand(base + " --bogus 2>&1", out), 2);
+	EXPECT_NE(out.find("rasterslam-eval traj: "), std::string::npos) << out;
+	EXPECT_NE(out.find("--bogus"), std::string::npos) << out;
+	EXPECT_NE(out.find("(see rasterslam-eval traj --help)"), std::string::npos) << out;
+	// Each bad value: exit 2 before any file is read, the option named.
+	const std::vector<std::pair<std::string, std::string>> bad = {
+	    {"--max-dt -1", "--max-dt"},        {"--max-dt nan", "--max-dt"},
+	    {"--max-dt x", "--max-dt"},         {"--step 0", "--step"},
+	    {"--step 2.5", "--step"},           {"--segments 1:x", "--segments"},
+	    {"--align 1,2,3", "--align"},       {"--align 0,0,0,0,0,0,2", "--align"},
+	    {"--gt-format xyz", "--gt-format"}, {"--associate near", "--associate"}};
+	for (const auto& [args, opt] : bad)
+	{
+		EXPECT_EQ(runCommand(base + " " + args + " 2>&1", out), 2) << args << "\n" << out;
+		EXPECT_NE(out.find("rasterslam-eval traj: " + opt + ":"), std::string::npos) << args << "\n"
+		                                                                             << out;
+	}
+	// A file that is not there is bad input, not a usage error.
+	EXPECT_EQ(runCommand(base + " --times " + (dir / "none").string() + " 2>&1", out), 1) << out;
+	EXPECT_NE(out.find("rasterslam-eval traj: error: --times: File does not exist: " +
+	                   (dir / "none").string()),
+	          std::string::npos)
+	    << out;
 }

@@ -128,10 +128,14 @@ TEST(Kitti, BadInputIsReported)
 	EXPECT_EQ(r.exitCode, 2);
 	EXPECT_NE(r.output.find("--poses needs --calib"), std::string::npos) << r.output;
 
+	// A folder that is not there is bad input: exit 1, named.
 	r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + (dir / "nothere").string() +
 	                     " -o " + (dir / "z.rawlog").string());
 	EXPECT_EQ(r.exitCode, 1);
-	EXPECT_NE(r.output.find("nothere' does not exist"), std::string::npos) << r.output;
+	EXPECT_NE(r.output.find("--velodyne: Directory does not exist: " + (dir / "nothere").string()),
+	          std::string::npos)
+	    << r.output;
+	EXPECT_FALSE(fs::exists(dir / "z.rawlog"));
 }
 
 TEST(Kitti, VerticalCorrectionRaisesEveryElevation)

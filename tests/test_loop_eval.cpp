@@ -1,16 +1,21 @@
 // Loop-closure evaluation: positives, precision/recall, the threshold sweep, F1 max, the CLI.
 #include <rasterslam/eval/loop_metrics.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <regex>
 #include <sstream>
 
+#include "test_json.h"
 #include "test_support.h"
 
 using namespace rasterslam;
+
+using test::parseJson;
 
 namespace
 {
@@ -112,6 +117,7 @@ std::string evalBin()
 {
 	return test::bin("rasterslam-eval");
 }
+
 }  // namespace
 
 TEST(LoopEval, SquareHasPositivesOnlyOnTheSecondLap)
@@ -456,27 +462,39 @@ TEST(LoopEvalCli, WritesCsvPlotAndJson)
 
 	res = test::runCommand(base + " --json");
 	ASSERT_EQ(res.exitCode, 0) << res.output;
-	const std::string& j = res.output;
-	EXPECT_TRUE(std::regex_search(j, std::regex(R"("queries": 80\b)"))) << j;
-	EXPECT_TRUE(std::regex_search(j, std::regex(R"("positives": 40\b)"))) << j;
-	EXPECT_TRUE(std::regex_search(
-	    j, std::regex(R"("detector": \{"precision": 1, "recall": 0.25, "f1": [0-9.]+, "tp": 10, )"
-	                  R"("fp": 0, "fn": 30\})")))
-	    << j;
-	EXPECT_TRUE(std::regex_search(
-	    j, std::regex(R"("f1_max": \{"threshold": 0.6, "precision": 1, "recall": 0.5, )")))
-	    << j;
-	EXPECT_TRUE(std::regex_match(j, std::regex(R"(\{[^\n]*\}\n)"))) << j;
+	// One object on one line.
+	EXPECT_EQ(std::count(res.output.begin(), res.output.end(), '\n'), 1) << res.output;
+	nlohmann::json j = parseJson(res.output);
+	EXPECT_EQ(j.value("queries", -1), 80) << res.output;
+	EXPECT_EQ(j.value("positives", -1), 40) << res.output;
+	EXPECT_EQ(j.value("lines", -1), static_cast<int>(lines.size())) << res.output;
+	EXPECT_TRUE(j.value("csv", nlohmann::json()).is_null()) << res.output;
+	EXPECT_TRUE(j.value("plot", nlohmann::json()).is_null()) << res.output;
+	const nlohmann::json det = j.value("detector", nlohmann::json::object());
+	EXPECT_FALSE(det.contains("threshold")) << res.output;
+	EXPECT_DOUBLE_EQ(det.value("precision", -1.0), 1.0) << res.output;
+	EXPECT_DOUBLE_EQ(det.value("recall", -1.0), 0.25) << res.output;
+	EXPECT_TRUE(det.value("f1", nlohmann::json()).is_number()) << res.output;
+	EXPECT_EQ(det.value("tp", -1), 10) << res.output;
+	EXPECT_EQ(det.value("fp", -1), 0) << res.output;
+	EXPECT_EQ(det.value("fn", -1), 30) << res.output;
+	nlohmann::json best = j.value("f1_max", nlohmann::json::object());
+	EXPECT_NEAR(best.value("threshold", -1.0), 0.6, 1e-9) << res.output;
+	EXPECT_DOUBLE_EQ(best.value("precision", -1.0), 1.0) << res.output;
+	EXPECT_DOUBLE_EQ(best.value("recall", -1.0), 0.5) << res.output;
 
 	// --distance 60 makes the 50 m matches correct, and first-lap queries from t = 34 s on
 	// (60 m or less from the start) positives: 40 + 6.
 	res = test::runCommand(base + " --distance 60 --json");
 	ASSERT_EQ(res.exitCode, 0) << res.output;
-	EXPECT_TRUE(std::regex_search(res.output, std::regex(R"("positives": 46\b)"))) << res.output;
-	EXPECT_TRUE(std::regex_search(
-	    res.output,
-	    std::regex(R"("f1_max": \{"threshold": 0.2, [^}]*"tp": 40, "fp": 0, "fn": 6\})")))
-	    << res.output;
+	j = parseJson(res.output);
+	EXPECT_EQ(j.value("positives", -1), 46) << res.output;
+	EXPECT_DOUBLE_EQ(j.value("distance_m", -1.0), 60.0) << res.output;
+	best = j.value("f1_max", nlohmann::json::object());
+	EXPECT_NEAR(best.value("threshold", -1.0), 0.2, 1e-9) << res.output;
+	EXPECT_EQ(best.value("tp", -1), 40) << res.output;
+	EXPECT_EQ(best.value("fp", -1), 0) << res.output;
+	EXPECT_EQ(best.value("fn", -1), 6) << res.output;
 }
 
 TEST(LoopEvalCli, ExitCodes)
@@ -489,10 +507,16 @@ TEST(LoopEvalCli, ExitCodes)
 	              loopsText({{40, 0, 0.5, true, true}}) + "1040 1000 x 1 1 1 ok 0 0 0 0 0 0 1\n");
 	auto res = test::runCommand(evalBin() + " loops --gt " + gt);
 	EXPECT_EQ(res.exitCode, 2) << res.output;
-	EXPECT_NE(res.output.find("--loops"), std::string::npos) << res.output;
+	EXPECT_NE(res.output.find("rasterslam-eval loops: --loops is required"), std::string::npos)
+	    << res.output;
 	res =
 	    test::runCommand(evalBin() + " loops --loops " + loops + " --gt " + gt + " --distance -1");
 	EXPECT_EQ(res.exitCode, 2) << res.output;
+	EXPECT_NE(res.output.find("rasterslam-eval loops: --distance: "), std::string::npos)
+	    << res.output;
+	res = test::runCommand(evalBin() + " loops --loops " + loops + " --gt " + gt + " --csv ''");
+	EXPECT_EQ(res.exitCode, 2) << res.output;
+	EXPECT_NE(res.output.find("--csv: empty file name"), std::string::npos) << res.output;
 	res = test::runCommand(evalBin() + " loops --loops " + loops + " --gt " + gt);
 	EXPECT_EQ(res.exitCode, 1) << res.output;
 	EXPECT_NE(res.output.find(loops + "' line 3"), std::string::npos) << res.output;

@@ -14,14 +14,18 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <set>
 
+#include "test_json.h"
 #include "test_support.h"
 
 using namespace rasterslam;
 namespace fs = std::filesystem;
+
+using test::jsonNumber;
 
 namespace
 {
@@ -78,10 +82,7 @@ double ate(const fs::path& out, const std::string& est = "trajectory.tum")
 	                                (out / "groundtruth.tum").string() + " --est " +
 	                                (out / est).string() + " --json");
 	EXPECT_EQ(r.exitCode, 0) << r.output;
-	std::smatch m;
-	if (!std::regex_search(r.output, m, std::regex("\"ate_rmse_m\": ([-0-9.eE+]+)")))
-		return std::nan("");
-	return std::stod(m[1]);
+	return jsonNumber(r.output, "ate_rmse_m");
 }
 }  // namespace
 
@@ -552,13 +553,7 @@ TEST(Mapping, TwoRealSessionsLieInOneFrame)
 	    " --est " +
 	    interleave(dir / "even", dir / "odd", "trajectory.tum", dir / "est.tum").string());
 	ASSERT_EQ(e.exitCode, 0) << e.output;
-	auto num = [&](const std::string& key)
-	{
-		std::smatch m;
-		return std::regex_search(e.output, m, std::regex("\"" + key + "\": ([-0-9.eE+]+)"))
-		           ? std::stod(m[1])
-		           : std::nan("");
-	};
+	auto num = [&](const std::string& key) { return jsonNumber(e.output, key); };
 	EXPECT_EQ(num("n_associated"), 101);
 	EXPECT_LT(num("ate_rmse_m"), 0.08) << e.output;
 	EXPECT_LT(num("rpe_trans_mean_m"), 0.06) << e.output;
@@ -617,13 +612,7 @@ TEST(Mapping, MapsBuiltSeparatelyAreMergedIntoOneFrame)
 	    test::runCommand(test::bin("rasterslam-eval") + " traj --json --gt " +
 	                     (dir / "gt.tum").string() + " --est " + (dir / "est.tum").string());
 	ASSERT_EQ(j.exitCode, 0) << j.output;
-	auto num = [&](const std::string& key)
-	{
-		std::smatch mt;
-		return std::regex_search(j.output, mt, std::regex("\"" + key + "\": ([-0-9.eE+]+)"))
-		           ? std::stod(mt[1])
-		           : std::nan("");
-	};
+	auto num = [&](const std::string& key) { return jsonNumber(j.output, key); };
 	EXPECT_EQ(num("n_associated"), static_cast<double>(m.keyframes.size()));
 	EXPECT_LT(num("ate_rmse_m"), 0.08) << j.output;
 	EXPECT_LT(num("rpe_trans_mean_m"), 0.05) << j.output;

@@ -1,12 +1,18 @@
 // The `rasterslam` program's command line: help, version and usage errors of every command,
 // the whole system by default, configs by name, and `rasterslam export` round trips.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <rasterslam/core/config.h>
 #include <rasterslam/io/trajectory_io.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "test_support.h"
 
@@ -221,9 +227,9 @@ TEST(RasterslamCli, ExportWritesPcdAndPlyWithTheirPointCountsAndRefusesToClobber
 	{
 		const auto out = dir / fmt;
 		auto r = test::runCommand(rs("export --rawlog " + rawlog + " --out " + out.string() +
-		                             " --format " + fmt + " --first 4 --last 5 --quiet"));
+		                             " --format " + fmt + " --first 004 --last 5 --quiet"));
 		ASSERT_EQ(r.exitCode, 0) << r.output;
-		// Scan 4 of the input is file 0 of the export.
+		// Scan 4 of the input is file 0 of the export (004 is decimal, not octal).
 		const auto text = readFile(out / "velodyne" / ("000000." + fmt));
 		ASSERT_FALSE(fs::exists(out / "velodyne" / ("000002." + fmt)));
 		const std::string endOfHeader = fmt == "pcd" ? "DATA binary\n" : "end_header\n";
@@ -254,4 +260,118 @@ TEST(RasterslamCli, ExportWritesPcdAndPlyWithTheirPointCountsAndRefusesToClobber
 	    rs("export --rawlog " + (dir / "none.rawlog").string() + " --out " + (dir / "x").string()));
 	EXPECT_EQ(r.exitCode, 1) << r.output;
 	EXPECT_TRUE(contains(r.output, (dir / "none.rawlog").string())) << r.output;
+}
+
+namespace
+{
+/** Starts a program with its output in `log`; returns its pid. */
+pid_t spawn(const std::vector<std::string>& args, const fs::path& log)
+{
+	std::vector<char*> argv;
+	for (const auto& a : args)
+		argv.push_back(const_cast<char*>(a.c_str()));
+	argv.push_back(nullptr);
+	const pid_t pid = ::fork();
+	if (pid == 0)
+	{
+		const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+		::dup2(fd, 1);
+		::dup2(fd, 2);
+		::execv(argv[0], argv.data());
+		::_exit(127);
+	}
+	return pid;
+}
+
+/** Waits for `pid` (at most `seconds`); its exit code, 128 + signal if a signal ended it, or
+ *  -1 on timeout (the process is then killed). */
+int waitExit(pid_t pid, double seconds)
+{
+	const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+	int st = 0;
+	while (::waitpid(pid, &st, WNOHANG) == 0)
+	{
+		if (std::chrono::steady_clock::now() > until)
+		{
+			::kill(pid, SIGKILL);
+			::waitpid(pid, &st, 0);
+			return -1;
+		}
+		std::this_thread::sleep_for(std::chrono::milliseconds(20));
+	}
+	return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+}
+
+std::size_t lines(const fs::path& p)
+{
+	std::ifstream f(p);
+	std::size_t n = 0;
+	for (std::string l; std::getline(f, l);)
+		n += !l.empty() && l[0] != '#';
+	return n;
+}
+}  // namespace
+
+TEST(RasterslamCli, SigintOrSigtermWritesTheOutputsAndTheMapForWhatWasProcessed)
+{
+	test::ScopedTempDir dir("cli-signal");
+	const auto rawlog = (dir / "town.rawlog").string();
+	auto r =
+	    test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+	                     test::sourcePath("rawlogs/town-loop.yaml") + " --scans 300 -o " + rawlog);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	// A temporary output that a killed run left (its process is gone) is removed at the next
+	// start; that of a live process is not.
+	const pid_t dead = ::fork();
+	if (dead == 0)
+		::_exit(0);
+	::waitpid(dead, nullptr, 0);
+	fs::create_directories(dir / "int");
+	const auto stale = dir / "int" / ("trajectory.tum.tmp-" + std::to_string(dead));
+	const auto live = dir / "int" / ("notes.txt.tmp-" + std::to_string(::getpid()));
+	std::ofstream(stale) << "left by a killed run";
+	std::ofstream(live) << "another process is writing this";
+
+	for (const auto& [sig, out] :
+	     {std::pair{SIGINT, std::string("int")}, std::pair{SIGTERM, std::string("term")}})
+	{
+		SCOPED_TRACE(out);
+		const auto log = dir / (out + ".log");
+		// Real time at 3x: 300 scans take 10 s, the signal comes after about one.
+		const pid_t pid = spawn(
+		    {test::bin("rasterslam"), "run", "--rawlog", rawlog, "--out", (dir / out).string(),
+		     "--map-out", (dir / (out + "-map")).string(), "--realtime", "--rate", "3"},
+		    log);
+		// Started when the first scan is reported.
+		const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+		while (readFile(log).find("[rasterslam] 1 scans") == std::string::npos &&
+		       std::chrono::steady_clock::now() < until)
+			std::this_thread::sleep_for(std::chrono::milliseconds(20));
+		std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+		::kill(pid, sig);
+		const int code = waitExit(pid, 60);
+		const auto text = readFile(log);
+		EXPECT_EQ(code, 128 + sig) << text;
+		const std::string name = sig == SIGINT ? "SIGINT" : "SIGTERM";
+		EXPECT_TRUE(contains(text, "interrupted by " + name + " after ")) << text;
+		// The outputs cover the scans processed: some, not all.
+		const auto n = lines(dir / out / "trajectory.tum");
+		EXPECT_GE(n, 5u) << text;
+		EXPECT_LT(n, 300u) << text;
+		EXPECT_EQ(lines(dir / out / "groundtruth.tum"), n);
+		const auto info = loadYamlFile((dir / out / "run.yaml").string());
+		EXPECT_EQ(info["summary"]["interrupted_by"].as<std::string>(), name);
+		EXPECT_EQ(info["counts"]["scans"].as<std::size_t>(), n);
+		// The map is saved and loads.
+		r = test::runCommand(rs("map info " + (dir / (out + "-map")).string()));
+		EXPECT_EQ(r.exitCode, 0) << r.output;
+		EXPECT_TRUE(contains(r.output, "sessions     : 1")) << r.output;
+		// No temporary file is left.
+		for (const auto* d : {"", "-map", "-map/store"})
+			for (const auto& e : fs::directory_iterator(dir / (out + d)))
+				if (e.path() != live)
+					EXPECT_FALSE(contains(e.path().filename().string(), ".tmp-")) << e.path();
+	}
+	EXPECT_FALSE(fs::exists(stale));
+	EXPECT_TRUE(fs::exists(live));
 }

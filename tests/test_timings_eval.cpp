@@ -1,12 +1,17 @@
 // rasterslam-eval timings: figures of a synthetic timings.csv, the plot, bad input files.
 #include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <regex>
 
+#include "test_json.h"
 #include "test_support.h"
 
 using namespace rasterslam;
+
+using test::number;
+using test::parseJson;
 
 namespace
 {
@@ -43,14 +48,13 @@ std::string evalBin()
 	return test::bin("rasterslam-eval");
 }
 
-/** The number after `"key": ` (the first one from `from`); NaN when absent. */
-double jsonValue(const std::string& j, const std::string& key, std::size_t from = 0)
+/** The labels of the runs, in order. */
+std::vector<std::string> labels(const nlohmann::json& j)
 {
-	std::smatch m;
-	const std::string rest = j.substr(std::min(from, j.size()));
-	if (!std::regex_search(rest, m, std::regex("\"" + key + "\": (-?[0-9.eE+-]+)")))
-		return std::nan("");
-	return std::stod(m[1]);
+	std::vector<std::string> out;
+	for (const auto& run : j.value("runs", nlohmann::json::array()))
+		out.push_back(run.value("label", "?"));
+	return out;
 }
 }  // namespace
 
@@ -61,31 +65,42 @@ TEST(TimingsEvalCli, FiguresOfASyntheticRun)
 	const auto res = test::runCommand(evalBin() + " timings " + (dir / "run1").string() +
 	                                  " --after-scan 950 --json");
 	ASSERT_EQ(res.exitCode, 0) << res.output;
-	const std::string& j = res.output;
-	EXPECT_NE(j.find("\"label\": \"run1\""), std::string::npos) << j;
-	EXPECT_EQ(jsonValue(j, "scans"), 2000) << j;
-	EXPECT_EQ(jsonValue(j, "tenth_scans"), 200) << j;
+	const std::string& out = res.output;
+	const nlohmann::json j = parseJson(out);
+	ASSERT_EQ(j.value("runs", nlohmann::json::array()).size(), 1u) << out;
+	EXPECT_EQ(labels(j), std::vector<std::string>{"run1"}) << out;
+	EXPECT_EQ(j["runs"][0].value("file", ""), (dir / "run1" / "timings.csv").string()) << out;
+	EXPECT_EQ(number(j, "/runs/0/scans"), 2000) << out;
+	EXPECT_EQ(number(j, "/runs/0/tenth_scans"), 200) << out;
 
-	const std::size_t total = j.find("\"total_ms\": {");
-	ASSERT_NE(total, std::string::npos) << j;
-	EXPECT_NEAR(jsonValue(j, "first", total), 10.0, 1e-9) << j;
-	EXPECT_NEAR(jsonValue(j, "last", total), 12.0, 1e-9) << j;
-	EXPECT_NEAR(jsonValue(j, "ratio", total), 1.2, 1e-9) << j;
-	const std::size_t loop = j.find("\"loop_ms\": {");
-	ASSERT_NE(loop, std::string::npos) << j;
-	EXPECT_NEAR(jsonValue(j, "ratio", loop), 3.0, 1e-9) << j;
-	const std::size_t read = j.find("\"read_ms\": {");
-	ASSERT_NE(read, std::string::npos) << j;
-	EXPECT_NEAR(jsonValue(j, "ratio", read), 1.0, 1e-9) << j;
+	EXPECT_NEAR(number(j, "/runs/0/total_ms/first"), 10.0, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/total_ms/last"), 12.0, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/total_ms/ratio"), 1.2, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/loop_ms/ratio"), 3.0, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/read_ms/ratio"), 1.0, 1e-9) << out;
+	for (const char* stage :
+	     {"total_ms", "read_ms", "rasterize_ms", "odometry_ms", "mapping_ms", "loop_ms"})
+		EXPECT_TRUE(j["runs"][0].contains(stage)) << stage << " missing in " << out;
 
-	EXPECT_NEAR(jsonValue(j, "rss_first_max_mb"), 100.199, 1e-9) << j;
-	EXPECT_NEAR(jsonValue(j, "rss_last_max_mb"), 101.999, 1e-9) << j;
-	EXPECT_NEAR(jsonValue(j, "rss_peak_mb"), 101.999, 1e-9) << j;
-	EXPECT_NEAR(jsonValue(j, "rss_growth_mb_per_1000_scans"), 1.0, 1e-6) << j;
+	EXPECT_NEAR(number(j, "/runs/0/rss_first_max_mb"), 100.199, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/rss_last_max_mb"), 101.999, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/rss_peak_mb"), 101.999, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/rss_growth_mb_per_1000_scans"), 1.0, 1e-6) << out;
 	// --after-scan 950: scans 850..950.
-	EXPECT_NEAR(jsonValue(j, "from"), 850, 1e-9) << j;
-	EXPECT_NEAR(jsonValue(j, "rss_max_mb"), 100.95, 1e-9) << j;
-	EXPECT_NEAR(jsonValue(j, "last_ratio"), 101.999 / 100.95, 1e-8) << j;
+	EXPECT_EQ(number(j, "/runs/0/after_scan/scan"), 950) << out;
+	EXPECT_EQ(number(j, "/runs/0/after_scan/from"), 850) << out;
+	EXPECT_NEAR(number(j, "/runs/0/after_scan/rss_max_mb"), 100.95, 1e-9) << out;
+	EXPECT_NEAR(number(j, "/runs/0/after_scan/last_ratio"), 101.999 / 100.95, 1e-8) << out;
+	EXPECT_EQ(number(j, "/window"), 100) << out;
+	EXPECT_TRUE(j.contains("plot") && j["plot"].is_null()) << out;
+
+	// Without --after-scan: null.
+	const auto plain =
+	    test::runCommand(evalBin() + " timings " + (dir / "run1").string() + " --json");
+	ASSERT_EQ(plain.exitCode, 0) << plain.output;
+	const nlohmann::json p = parseJson(plain.output);
+	ASSERT_TRUE(p.contains(nlohmann::json::json_pointer("/runs/0/after_scan"))) << plain.output;
+	EXPECT_TRUE(p["runs"][0]["after_scan"].is_null()) << plain.output;
 
 	// The text form carries the same figures.
 	const auto text = test::runCommand(evalBin() + " timings " + (dir / "run1").string());
@@ -108,9 +123,10 @@ TEST(TimingsEvalCli, PlotsSeveralRunsWithLabels)
 	    evalBin() + " timings " + a + " " + (dir / "b").string() + " --label first --label second";
 	auto res = test::runCommand(base + " --plot " + png + " --window 50 --json");
 	ASSERT_EQ(res.exitCode, 0) << res.output;
-	EXPECT_NE(res.output.find("\"label\": \"first\""), std::string::npos) << res.output;
-	EXPECT_NE(res.output.find("\"label\": \"second\""), std::string::npos) << res.output;
-	EXPECT_NE(res.output.find("\"window\": 50"), std::string::npos) << res.output;
+	nlohmann::json j = parseJson(res.output);
+	EXPECT_EQ(labels(j), (std::vector<std::string>{"first", "second"})) << res.output;
+	EXPECT_EQ(number(j, "/window"), 50) << res.output;
+	EXPECT_EQ(j.value("plot", ""), png) << res.output;
 	const cv::Mat img = cv::imread(png);
 	ASSERT_FALSE(img.empty()) << png;
 	EXPECT_EQ(img.cols, 1200);
@@ -121,7 +137,8 @@ TEST(TimingsEvalCli, PlotsSeveralRunsWithLabels)
 
 	// Default labels are the folder names.
 	res = test::runCommand(evalBin() + " timings " + a + " --json");
-	EXPECT_NE(res.output.find("\"label\": \"a\""), std::string::npos) << res.output;
+	ASSERT_EQ(res.exitCode, 0) << res.output;
+	EXPECT_EQ(labels(parseJson(res.output)), std::vector<std::string>{"a"}) << res.output;
 }
 
 TEST(TimingsEvalCli, BadInputNamesTheFileAndLine)
@@ -153,9 +170,18 @@ TEST(TimingsEvalCli, BadInputNamesTheFileAndLine)
 	EXPECT_EQ(res.exitCode, 1) << res.output;
 	EXPECT_NE(res.output.find(file), std::string::npos) << res.output;
 
+	// A folder without timings.csv: exit 1, the file named.
+	std::filesystem::create_directories(dir / "nocsv");
+	res = test::runCommand(evalBin() + " timings " + (dir / "nocsv").string());
+	EXPECT_EQ(res.exitCode, 1) << res.output;
+	EXPECT_NE(res.output.find((dir / "nocsv" / "timings.csv").string()), std::string::npos)
+	    << res.output;
+	// A RUN_DIR that does not exist is bad input: exit 1, named in the message.
 	res = test::runCommand(evalBin() + " timings " + (dir / "missing").string());
 	EXPECT_EQ(res.exitCode, 1) << res.output;
-	EXPECT_NE(res.output.find((dir / "missing" / "timings.csv").string()), std::string::npos)
+	EXPECT_NE(res.output.find("rasterslam-eval timings: error: RUN_DIR: Path does not exist: " +
+	                          (dir / "missing").string()),
+	          std::string::npos)
 	    << res.output;
 }
 
@@ -165,10 +191,28 @@ TEST(TimingsEvalCli, CommandLine)
 	const std::string a = writeFile(dir / "a" / "timings.csv", syntheticCsv());
 	auto res = test::runCommand(evalBin() + " timings");
 	EXPECT_EQ(res.exitCode, 2) << res.output;
+	EXPECT_NE(res.output.find("rasterslam-eval timings: RUN_DIR is required"), std::string::npos)
+	    << res.output;
 	res = test::runCommand(evalBin() + " timings " + a + " --label x --label y");
 	EXPECT_EQ(res.exitCode, 2) << res.output;
-	res = test::runCommand(evalBin() + " timings " + a + " --window 0");
-	EXPECT_EQ(res.exitCode, 2) << res.output;
+	EXPECT_NE(res.output.find("rasterslam-eval timings: give --label once per RUN_DIR"),
+	          std::string::npos)
+	    << res.output;
+	EXPECT_NE(res.output.find("(see rasterslam-eval timings --help)"), std::string::npos)
+	    << res.output;
+	// --label takes one value each time: the folder after it stays a RUN_DIR.
+	res = test::runCommand(evalBin() + " timings --label x " + a + " --json");
+	EXPECT_EQ(res.exitCode, 0) << res.output;
+	EXPECT_EQ(labels(parseJson(res.output)), std::vector<std::string>{"x"}) << res.output;
+	for (const std::string bad : {"--window 0", "--window x", "--after-scan -5", "--plot ''"})
+	{
+		res = test::runCommand(evalBin() + " timings " + a + " " + bad);
+		EXPECT_EQ(res.exitCode, 2) << bad << "\n" << res.output;
+		EXPECT_NE(res.output.find("rasterslam-eval timings: " + bad.substr(0, bad.find(' ')) + ":"),
+		          std::string::npos)
+		    << bad << "\n"
+		    << res.output;
+	}
 	// Scan 5000 is past the end of the run.
 	res = test::runCommand(evalBin() + " timings " + a + " --after-scan 5000");
 	EXPECT_EQ(res.exitCode, 1) << res.output;

@@ -5,6 +5,7 @@
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/registerAllClasses.h>
+#include <rasterslam/cli/app.h>
 #include <rasterslam/core/pose_conversions.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/rawlog_writer.h>
@@ -24,42 +25,19 @@ using namespace rasterslam;
 
 namespace
 {
-const char* kUsage = R"(kitti2rawlog: convert a KITTI odometry sequence into an MRPT rawlog
+const char* kDescription =
+    "kitti2rawlog: convert a KITTI odometry sequence into an MRPT rawlog, from a folder of scans "
+    "(--velodyne DIR, with --poses FILE --calib FILE and --times FILE when at hand) or from a "
+    "KITTI layout (--sequence DIR).";
 
-usage:
-  kitti2rawlog --velodyne DIR -o OUT.rawlog [--poses FILE --calib FILE] [--times FILE]
-               [--first N] [--last N] [--external] [--compress 0..9]
-  kitti2rawlog --sequence DIR -o OUT.rawlog [...]
-
-  --velodyne DIR   folder of KITTI .bin scans (sorted by name; scan i is line i of the
-                   poses and times files)
-  --sequence DIR   KITTI layout: DIR/velodyne, DIR/times.txt, DIR/calib.txt, and poses
-                   from DIR/poses.txt or DIR/../../poses/<name of DIR>.txt when present
-  --poses FILE     ground truth, KITTI format (cam0 frame); needs --calib
-  --calib FILE     calib.txt; its Tr line turns cam0 poses into Velodyne-frame poses
-  --times FILE     times.txt (seconds); without it scans are 0.1 s apart
-  --first N        first scan to convert (position in the sorted list, default 0)
-  --last N         last scan to convert (inclusive, default: the last)
-  --external       write a small rawlog that references the .bin files (MRPT external
-                   storage, absolute paths) instead of embedding the points
-  --compress L     gzip level 0..9 (0: plain file; default 1)
-  --vertical-correction-deg D
-                   raise every point's elevation by D degrees (rotation about the
-                   horizontal axis across its azimuth): the known HDL-64 calibration error
-                   of the KITTI scans is 0.205 deg (default 0: points as recorded;
-                   not with --external)
-  -o, --out FILE   rawlog to write (written to a temporary name, then renamed)
-
-Each scan becomes a CObservationPointCloud (label LIDAR, XYZI, sensorPose identity) and,
-with poses, a CObservationRobotPose (label GROUND_TRUTH) with the same time stamp holding
-the Velodyne-frame pose inv(Tr) * P_i * Tr.
-)";
-
-[[noreturn]] void usageError(const std::string& msg)
-{
-	std::cerr << "kitti2rawlog: " << msg << "\n(see kitti2rawlog --help)\n";
-	std::exit(2);
-}
+const char* kFooter =
+    "Examples:\n"
+    "kitti2rawlog --sequence dataset/sequences/00 -o kitti00.rawlog\n"
+    "kitti2rawlog --velodyne DIR --poses P --calib C --times T -o OUT.rawlog --last 99\n"
+    "\n"
+    "Each scan becomes a CObservationPointCloud (label LIDAR, XYZI, sensorPose identity) and, "
+    "with poses, a CObservationRobotPose (label GROUND_TRUTH) with the same time stamp holding "
+    "the Velodyne-frame pose inv(Tr) * P_i * Tr.";
 
 /** Rotates every point by `deg` about the horizontal axis perpendicular to its azimuth,
  *  which raises its elevation angle by `deg` and keeps its range and azimuth. */
@@ -78,22 +56,6 @@ void correctElevation(std::vector<PointXYZI>& pts, double deg)
 		p.z = static_cast<float>(z2);
 	}
 }
-
-std::size_t parseIndex(const std::string& opt, const std::string& v)
-{
-	try
-	{
-		std::size_t pos = 0;
-		const long long n = std::stoll(v, &pos);
-		if (pos != v.size() || n < 0)
-			throw std::invalid_argument(v);
-		return static_cast<std::size_t>(n);
-	}
-	catch (const std::exception&)
-	{
-		usageError(opt + " expects a non-negative integer, got '" + v + "'");
-	}
-}
 }  // namespace
 
 int main(int argc, char** argv)
@@ -103,61 +65,72 @@ int main(int argc, char** argv)
 	bool external = false;
 	int compress = 1;
 	double verticalCorrection_deg = 0;
-	for (int i = 1; i < argc; i++)
-	{
-		const std::string a = argv[i];
-		auto value = [&]() -> std::string
-		{
-			if (i + 1 >= argc)
-				usageError(a + " needs a value");
-			return argv[++i];
-		};
-		if (a == "-h" || a == "--help")
-		{
-			std::cout << kUsage;
-			return 0;
-		}
-		else if (a == "--velodyne")
-			velodyne = value();
-		else if (a == "--sequence")
-			sequence = value();
-		else if (a == "-o" || a == "--out")
-			out = value();
-		else if (a == "--poses")
-			posesFile = value();
-		else if (a == "--calib")
-			calibFile = value();
-		else if (a == "--times")
-			timesFile = value();
-		else if (a == "--first")
-			first = parseIndex(a, value());
-		else if (a == "--last")
-			last = parseIndex(a, value());
-		else if (a == "--external")
-			external = true;
-		else if (a == "--vertical-correction-deg")
-		{
-			const auto v = value();
-			char* end = nullptr;
-			verticalCorrection_deg = std::strtod(v.c_str(), &end);
-			if (end != v.c_str() + v.size() || !std::isfinite(verticalCorrection_deg) ||
-			    std::abs(verticalCorrection_deg) > 5)
-				usageError("--vertical-correction-deg expects a number of degrees in [-5, 5]");
-		}
-		else if (a == "--compress")
-		{
-			const auto v = value();
-			if (v.size() != 1 || v[0] < '0' || v[0] > '9')
-				usageError("--compress expects 0..9");
-			compress = v[0] - '0';
-		}
-		else
-			usageError("unknown option '" + a + "'");
-	}
-	if (out.empty())
-		usageError("-o OUT.rawlog is required");
-	if (velodyne.empty() == sequence.empty())
-		usageError("give exactly one of --velodyne or --sequence");
+
+	CLI::App app(kDescription, "kitti2rawlog");
+	cli::configure(app);
+	app.footer(std::string(kFooter) + "\n\n" + cli::exitCodesFooter());
+	const auto existingFile = CLI::ExistingFile.description("");
+	const auto existingDir = CLI::ExistingDirectory.description("");
+	app.add_option("-o,--out", out, "rawlog to write (written to a temporary name, then renamed)")
+	    ->required()
+	    ->type_name("FILE");
+	app.add_option("--poses", posesFile,
+	               "ground truth, KITTI format (cam0 frame); needs --calib (given, or found by "
+	               "--sequence)")
+	    ->check(existingFile)
+	    ->type_name("FILE");
+	app.add_option("--calib", calibFile,
+	               "calib.txt; its Tr line turns cam0 poses into Velodyne-frame poses")
+	    ->check(existingFile)
+	    ->type_name("FILE");
+	app.add_option("--times", timesFile, "times.txt (seconds); without it scans are 0.1 s apart")
+	    ->check(existingFile)
+	    ->type_name("FILE");
+	cli::addIndex(app, "--first", first,
+	              "first scan to convert (position in the sorted list, default 0)");
+	cli::addIndex(app, "--last", last, "last scan to convert (inclusive, default: the last)");
+	CLI::Option* externalOpt =
+	    app.add_flag("--external", external,
+	                 "write a small rawlog that references the .bin files (MRPT external "
+	                 "storage, absolute paths) instead of embedding the points");
+	app.add_option("--compress", compress, "gzip level 0..9 (0: plain file; default 1)")
+	    ->check(CLI::Range(0, 9).description(""))
+	    ->type_name("L");
+	const CLI::Validator degrees(
+	    [](std::string& v) -> std::string
+	    {
+		    char* end = nullptr;
+		    const double d = std::strtod(v.c_str(), &end);
+		    const bool ok = !v.empty() && end == v.c_str() + v.size() && std::abs(d) <= 5;
+		    return ok ? std::string() : "expects a number of degrees in [-5, 5], got '" + v + "'";
+	    },
+	    "");
+	app.add_option("--vertical-correction-deg", verticalCorrection_deg,
+	               "raise every point's elevation by D degrees, D in [-5, 5] (rotation about the "
+	               "horizontal axis across its azimuth): the known HDL-64 calibration error of "
+	               "the KITTI scans is 0.205 deg (default 0: points as recorded; not with "
+	               "--external)")
+	    ->check(degrees)
+	    ->excludes(externalOpt)
+	    ->type_name("D");
+	// Exactly one of the two says where the scans are.
+	CLI::App* input = app.add_option_group("input", "where the scans are");
+	input
+	    ->add_option("--velodyne", velodyne,
+	                 "folder of KITTI .bin scans (sorted by name; scan i is line i of the poses "
+	                 "and times files)")
+	    ->check(existingDir)
+	    ->type_name("DIR");
+	input
+	    ->add_option("--sequence", sequence,
+	                 "KITTI layout: DIR/velodyne, DIR/times.txt, DIR/calib.txt, and poses from "
+	                 "DIR/poses.txt or DIR/../../poses/<name of DIR>.txt when present")
+	    ->check(existingDir)
+	    ->type_name("DIR");
+	input->require_option(1);
+	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
+		return rc;
+
 	if (!sequence.empty())
 	{
 		velodyne = (fs::path(sequence) / "velodyne").string();
@@ -175,11 +148,10 @@ int main(int argc, char** argv)
 			posesFile = ifExists(fs::path(sequence) / ".." / ".." / "poses" / (seqName + ".txt"));
 		}
 	}
-	if (external && verticalCorrection_deg != 0)
-		usageError(
-		    "--vertical-correction-deg changes the points: it cannot be used with --external");
+	// Not a CLI11 needs(): with --sequence, --poses and --calib may come from the folder.
 	if (!posesFile.empty() && calibFile.empty())
-		usageError(
+		cli::usageError(
+		    "kitti2rawlog",
 		    "--poses needs --calib: KITTI poses are in the cam0 frame, and Tr turns them "
 		    "into Velodyne-frame poses");
 

@@ -2,12 +2,12 @@
 // (the lifelong-maps issue: "save and load of a 1,000-local-map store"). The map is
 // synthetic but sized like the simulated HDL-64E town's (points a local map, a PNG image),
 // drawn from a seeded generator; nothing is kept after the run.
+#include <rasterslam/cli/app.h>
 #include <rasterslam/map/map.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -45,21 +45,30 @@ std::uintmax_t bytesIn(const fs::path& dir)
 int main(int argc, char** argv)
 {
 	std::size_t maps = 1000, points = 8000;
-	for (int i = 1; i < argc; i++)
-	{
-		const std::string a = argv[i];
-		if ((a == "--local-maps" || a == "--points") && i + 1 < argc)
-			(a == "--local-maps" ? maps : points) = std::strtoul(argv[++i], nullptr, 10);
-		else
-		{
-			std::fprintf(
-			    stderr,
-			    "usage: rasterslam-bench-map-store [--local-maps N (1000)] [--points P (8000)]\n");
-			return a == "-h" || a == "--help" ? 0 : 2;
-		}
-	}
-	if (maps < 1 || points < 1)
-		return 2;
+	CLI::App app(
+	    "rasterslam-bench-map-store: seconds and bytes to save and load a map of many local maps. "
+	    "The map is synthetic but sized like the simulated HDL-64E town's (points a local map, a "
+	    "PNG image), drawn from a seeded generator, in a folder of the system's temporary "
+	    "directory; nothing is kept after the run.",
+	    "rasterslam-bench-map-store");
+	cli::configure(app);
+	const CLI::Validator atLeastOne(
+	    [](std::string& v) -> std::string
+	    {
+		    const bool ok = !v.empty() && v.size() < 19 &&
+		                    v.find_first_not_of("0123456789") == std::string::npos &&
+		                    v.find_first_not_of('0') != std::string::npos;
+		    return ok ? std::string() : "expects a whole number >= 1, got '" + v + "'";
+	    },
+	    "");
+	app.add_option("--local-maps", maps, "local maps in the map (default 1000)")
+	    ->check(atLeastOne)
+	    ->type_name("N");
+	app.add_option("--points", points, "points a local map (default 8000)")
+	    ->check(atLeastOne)
+	    ->type_name("P");
+	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
+		return rc;
 	const fs::path dir =
 	    fs::temp_directory_path() / ("rasterslam-bench-map-store-" + std::to_string(::getpid()));
 	std::mt19937 rng(3);

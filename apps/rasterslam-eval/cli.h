@@ -1,18 +1,22 @@
-// Shared by the subcommands of rasterslam-eval: option parsing and JSON text.
+// Shared by the subcommands of rasterslam-eval: the command line (CLI11 with the project's
+// conventions, rasterslam/cli/app.h), option checks and JSON values.
 #pragma once
 
+#include <rasterslam/cli/app.h>
 #include <rasterslam/eval/loop_metrics.h>
 #include <rasterslam/eval/trajectory_metrics.h>
 #include <rasterslam/io/trajectory_io.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <functional>
 #include <iomanip>
 #include <iostream>
-#include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -22,117 +26,86 @@ namespace rasterslam_eval_cli
 {
 namespace io = rasterslam::io;
 namespace eval = rasterslam::eval;
+namespace cli = rasterslam::cli;
 
-/** Bad command line: exit code 2 (bad input files give 1). */
-struct UsageError : std::runtime_error
+/** The JSON the subcommands print: keys in the order they are set. */
+using Json = nlohmann::ordered_json;
+
+/** A number in text: up to 9 significant digits, no trailing zeros ("850", "0.02"). */
+inline std::string numberText(double v)
 {
-	using std::runtime_error::runtime_error;
-};
-
-/** "--key value" and "--key=value" options; flags take no value. */
-class Options
-{
-   public:
-	Options(int argc, char** argv, const std::vector<std::string>& valued,
-	        const std::vector<std::string>& flags)
-	{
-		for (int i = 0; i < argc; ++i)
-		{
-			std::string a = argv[i];
-			std::string value;
-			bool hasValue = false;
-			if (const auto eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos)
-			{
-				value = a.substr(eq + 1);
-				a = a.substr(0, eq);
-				hasValue = true;
-			}
-			if (contains(flags, a) && !hasValue)
-				flags_.push_back(a);
-			else if (contains(valued, a))
-			{
-				if (!hasValue)
-				{
-					if (i + 1 >= argc)
-						throw UsageError("option " + a + " needs a value");
-					value = argv[++i];
-				}
-				values_[a] = value;
-			}
-			else
-				throw UsageError("unknown option '" + std::string(argv[i]) + "'");
-		}
-	}
-	bool flag(const std::string& k) const { return contains(flags_, k); }
-	bool has(const std::string& k) const { return values_.count(k) > 0; }
-	std::string get(const std::string& k, const std::string& def = "") const
-	{
-		const auto it = values_.find(k);
-		return it == values_.end() ? def : it->second;
-	}
-	std::string require(const std::string& k) const
-	{
-		if (!has(k))
-			throw UsageError("missing required option " + k);
-		return get(k);
-	}
-	double number(const std::string& k, double def) const
-	{
-		if (!has(k))
-			return def;
-		const std::string s = get(k);
-		char* end = nullptr;
-		const double v = std::strtod(s.c_str(), &end);
-		if (s.empty() || *end != '\0' || !std::isfinite(v) || v < 0)
-			throw UsageError("option " + k + ": expected a non-negative number, got '" + s + "'");
-		return v;
-	}
-
-   private:
-	static bool contains(const std::vector<std::string>& v, const std::string& s)
-	{
-		for (const auto& x : v)
-		{
-			if (x == s)
-				return true;
-		}
-		return false;
-	}
-	std::map<std::string, std::string> values_;
-	std::vector<std::string> flags_;
-};
-
-inline std::string jsonNumber(double v, bool valid = true)
-{
-	if (!valid || !std::isfinite(v))
-		return "null";
 	char buf[64];
 	std::snprintf(buf, sizeof(buf), "%.9g", v);
 	return buf;
 }
 
-inline std::string jsonString(const std::string& s)
+/** A JSON number rounded to 9 significant digits (0.005 rather than
+ *  0.005000000000000022), or null when the figure is not valid or not finite (NaN, inf). */
+inline Json jsonNumber(double v, bool valid = true)
 {
-	std::string out = "\"";
-	for (const char c : s)
-	{
-		if (c == '"' || c == '\\')
-			out += std::string("\\") + c;
-		else if (static_cast<unsigned char>(c) < 0x20)
-		{
-			char buf[8];
-			std::snprintf(buf, sizeof(buf), "\\u%04x", c);
-			out += buf;
-		}
-		else
-			out += c;
-	}
-	return out + "\"";
+	if (!valid || !std::isfinite(v))
+		return nullptr;
+	return std::strtod(numberText(v).c_str(), nullptr);
 }
 
-int runTraj(int argc, char** argv);
-int runLoops(int argc, char** argv);
-int runLocalMaps(int argc, char** argv);
-int runTimings(int argc, char** argv);
+/** One JSON object on one line. File names that are no valid UTF-8 get U+FFFD rather than
+ *  failing the output. */
+inline std::string jsonLine(const Json& j)
+{
+	return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+}
+
+/** A subcommand: its CLI11 app and what runs it once the command line is parsed. */
+struct Command
+{
+	CLI::App* app = nullptr;
+	std::function<int()> run;
+};
+
+Command addTraj(CLI::App& app);
+Command addLoops(CLI::App& app);
+Command addLocalMaps(CLI::App& app);
+Command addTimings(CLI::App& app);
+
+// ---- option checks (CLI11 validators: failures are usage errors, exit 2) ----
+
+/** A finite number >= 0. */
+inline CLI::Validator nonNegativeNumber()
+{
+	return CLI::Validator(
+	    [](std::string& s) -> std::string
+	    {
+		    char* end = nullptr;
+		    const double v = std::strtod(s.c_str(), &end);
+		    if (s.empty() || *end != '\0' || !std::isfinite(v) || v < 0)
+			    return "expected a non-negative number, got '" + s + "'";
+		    return {};
+	    },
+	    "");
+}
+
+/** A whole number in [min, max] (digits only: no sign, no exponent). */
+inline CLI::Validator wholeNumber(std::uint64_t min, std::uint64_t max)
+{
+	return CLI::Validator(
+	    [min, max](std::string& s) -> std::string
+	    {
+		    const bool digits = !s.empty() && s.size() < 19 &&
+		                        s.find_first_not_of("0123456789") == std::string::npos;
+		    const std::uint64_t v = digits ? std::strtoull(s.c_str(), nullptr, 10) : 0;
+		    if (!digits || v < min || v > max)
+			    return "expected a whole number from " + std::to_string(min) + " to " +
+			           std::to_string(max) + ", got '" + s + "'";
+		    return {};
+	    },
+	    "");
+}
+
+/** A file name to write: not empty. */
+inline CLI::Validator outputFile()
+{
+	return CLI::Validator(
+	    [](std::string& s) -> std::string { return s.empty() ? "empty file name" : ""; }, "");
+}
 
 }  // namespace rasterslam_eval_cli

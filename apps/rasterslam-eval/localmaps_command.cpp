@@ -11,22 +11,19 @@ namespace rasterslam_eval_cli
 {
 namespace
 {
-const char* kLocalMapsUsage =
-    R"(Usage: rasterslam-eval localmaps --map DIR --gt G [options]
+// Below the options in --help (the formatter wraps it at 100 columns, keeping line breaks).
+const char* kLocalMapsAbout =
+    "Relative errors inside local maps: for every local map of the map DIR (--map; written by "
+    "rasterslam run --map-out) and every pair of its keyframes, the keyframes' relative pose "
+    "against the ground truth G (--gt; TUM, a run's groundtruth.tum) at their stamps. Also the "
+    "local BA figures the map stores (tracks, RMS residual before and after).";
 
-Relative errors inside local maps: for every local map of the map DIR (written by rasterslam
-run --map-out) and every pair of its keyframes, the keyframes' relative pose against the
-ground truth G (TUM; a run's groundtruth.tum) at their stamps. Also the local BA figures the
-map stores (tracks, RMS residual before and after).
-
-Options:
-  --map DIR             a saved map (required)
-  --gt FILE             ground-truth TUM trajectory (required)
-  --max-dt S            largest stamp difference to the ground truth (default 0.02)
-  --json                print one JSON object instead of text
-  -h, --help            this help
-Exit codes: 0 success, 1 bad input file, 2 bad command line.
-)";
+struct LocalMapsOptions
+{
+	std::string map, gt;
+	double maxDt = 0.02;
+	bool json = false;
+};
 
 double median(std::vector<double> v)
 {
@@ -44,19 +41,12 @@ double mean(const std::vector<double>& v)
 		s += x;
 	return s / static_cast<double>(v.size());
 }
-}  // namespace
 
-int runLocalMaps(int argc, char** argv)
+int runLocalMaps(const LocalMapsOptions& o)
 {
-	const Options o(argc, argv, {"--map", "--gt", "--max-dt"}, {"--json", "-h", "--help"});
-	if (o.flag("-h") || o.flag("--help"))
-	{
-		std::cout << kLocalMapsUsage;
-		return 0;
-	}
-	const auto mapDir = o.require("--map");
-	const auto gtFile = o.require("--gt");
-	const double maxDt = o.number("--max-dt", 0.02);
+	const std::string& mapDir = o.map;
+	const std::string& gtFile = o.gt;
+	const double maxDt = o.maxDt;
 	const auto map = rasterslam::loadMap(mapDir);
 	const auto gt = io::loadTrajectory(gtFile);
 	if (gt.empty())
@@ -114,20 +104,23 @@ int runLocalMaps(int argc, char** argv)
 	}
 	if (et.empty())
 		throw std::runtime_error("no keyframe pair of a local map has ground truth");
-	if (o.flag("--json"))
+	if (o.json)
 	{
-		std::cout << "{\"local_maps\": " << maps << ", \"pairs\": " << et.size()
-		          << ", \"pairs_without_gt\": " << missing
-		          << ", \"trans_err_mean_m\": " << jsonNumber(mean(et))
-		          << ", \"trans_err_median_m\": " << jsonNumber(median(et))
-		          << ", \"rot_err_mean_deg\": " << jsonNumber(mean(er))
-		          << ", \"horizontal_err_mean_m\": " << jsonNumber(mean(exy))
-		          << ", \"vertical_err_mean_m\": " << jsonNumber(mean(ez))
-		          << ", \"yaw_err_mean_deg\": " << jsonNumber(mean(eyaw))
-		          << ", \"ba_maps\": " << tracks.size()
-		          << ", \"ba_tracks_mean\": " << jsonNumber(mean(tracks), !tracks.empty())
-		          << ", \"ba_rms_before_m\": " << jsonNumber(mean(rms0), !rms0.empty())
-		          << ", \"ba_rms_after_m\": " << jsonNumber(mean(rms1), !rms1.empty()) << "}\n";
+		Json j;
+		j["local_maps"] = maps;
+		j["pairs"] = et.size();
+		j["pairs_without_gt"] = missing;
+		j["trans_err_mean_m"] = jsonNumber(mean(et));
+		j["trans_err_median_m"] = jsonNumber(median(et));
+		j["rot_err_mean_deg"] = jsonNumber(mean(er));
+		j["horizontal_err_mean_m"] = jsonNumber(mean(exy));
+		j["vertical_err_mean_m"] = jsonNumber(mean(ez));
+		j["yaw_err_mean_deg"] = jsonNumber(mean(eyaw));
+		j["ba_maps"] = tracks.size();
+		j["ba_tracks_mean"] = jsonNumber(mean(tracks), !tracks.empty());
+		j["ba_rms_before_m"] = jsonNumber(mean(rms0), !rms0.empty());
+		j["ba_rms_after_m"] = jsonNumber(mean(rms1), !rms1.empty());
+		std::cout << jsonLine(j);
 		return 0;
 	}
 	std::printf(
@@ -140,6 +133,30 @@ int runLocalMaps(int argc, char** argv)
 		std::printf("local BA    : %zu maps, %.0f tracks a map, RMS residual %.3f -> %.3f m\n",
 		            tracks.size(), mean(tracks), mean(rms0), mean(rms1));
 	return 0;
+}
+
+}  // namespace
+
+Command addLocalMaps(CLI::App& app)
+{
+	CLI::App* sub =
+	    cli::subcommand(app, "localmaps", "relative errors between the keyframes of each local map",
+	                    kLocalMapsAbout);
+	auto o = std::make_shared<LocalMapsOptions>();
+	sub->add_option("--map", o->map, "a saved map DIR")
+	    ->required()
+	    ->check(cli::unnamed(CLI::ExistingDirectory))
+	    ->type_name("DIR");
+	sub->add_option("--gt", o->gt, "ground-truth TUM trajectory G")
+	    ->required()
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--max-dt", o->maxDt, "largest stamp difference to the ground truth (s)")
+	    ->check(nonNegativeNumber())
+	    ->type_name("S")
+	    ->capture_default_str();
+	sub->add_flag("--json", o->json, "print one JSON object instead of text");
+	return {sub, [o] { return runLocalMaps(*o); }};
 }
 
 }  // namespace rasterslam_eval_cli

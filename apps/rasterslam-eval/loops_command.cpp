@@ -5,30 +5,24 @@ namespace rasterslam_eval_cli
 {
 namespace
 {
-const char* kLoopsUsage =
-    R"(Usage: rasterslam-eval loops --loops F --gt G [options]
+// Below the options in --help (the formatter wraps it at 100 columns, keeping line breaks).
+const char* kLoopsAbout =
+    "Precision and recall of loop closure: F (--loops) is the loops.txt of a run (one line per "
+    "candidate the detector examined), G (--gt) the ground truth (TUM; a run's groundtruth.tum). "
+    "A query is positive when the ground truth holds a pose at least --exclude-s older within "
+    "--distance of it. A detection is a query's highest-scoring candidate; it is correct when "
+    "the two places are within --distance (candidates less than --exclude-s older than the query "
+    "are ignored).\n"
+    "detector: the detector's own decisions (accepted lines);\n"
+    "sweep: per score threshold, the best verified candidate with score >= threshold; every "
+    "distinct score of F and +inf; F1 max (ties: higher precision).";
 
-Precision and recall of loop closure: F is the loops.txt of a run (one line per candidate the
-detector examined), G the ground truth (TUM; a run's groundtruth.tum). A query is positive when
-the ground truth holds a pose at least --exclude-s older within --distance of it. A detection
-is a query's highest-scoring candidate; it is correct when the two places are within
---distance (candidates less than --exclude-s older than the query are ignored).
-  detector   the detector's own decisions (accepted lines)
-  sweep      per score threshold, the best verified candidate with score >= threshold;
-             every distinct score of F and +inf; F1 max (ties: higher precision)
-
-Options:
-  --loops FILE          the detector's loops.txt (required)
-  --gt FILE             ground-truth TUM trajectory (required)
-  --distance M          largest distance of a correct loop, metres (default 4)
-  --exclude-s S         places younger than S seconds are no loops (default 30)
-  --max-dt S            largest stamp difference to the ground truth (default 0.02)
-  --csv FILE            write the sweep: threshold,precision,recall,f1,tp,fp,fn
-  --plot FILE           write the precision-recall curve as PNG
-  --json                print one JSON object instead of text
-  -h, --help            this help
-Exit codes: 0 success, 1 bad input file, 2 bad command line.
-)";
+struct LoopsOptions
+{
+	std::string loops, gt, csv, plot;
+	eval::LoopEvalParams params;
+	bool json = false;
+};
 
 std::string thresholdText(double t)
 {
@@ -39,42 +33,25 @@ std::string thresholdText(double t)
 	return buf;
 }
 
-std::string jsonPoint(const eval::PrPoint& p, bool withThreshold)
+Json jsonPoint(const eval::PrPoint& p, bool withThreshold)
 {
-	std::ostringstream j;
-	j << "{";
+	Json j;
 	if (withThreshold)
-		j << "\"threshold\": " << (std::isinf(p.threshold) ? "\"inf\"" : jsonNumber(p.threshold))
-		  << ", ";
-	j << "\"precision\": " << jsonNumber(p.precision)
-	  << ", \"recall\": " << jsonNumber(p.recall, p.valid)
-	  << ", \"f1\": " << jsonNumber(p.f1, p.valid) << ", \"tp\": " << p.tp << ", \"fp\": " << p.fp
-	  << ", \"fn\": " << p.fn << "}";
-	return j.str();
+		j["threshold"] = std::isinf(p.threshold) ? Json("inf") : jsonNumber(p.threshold);
+	j["precision"] = jsonNumber(p.precision);
+	j["recall"] = jsonNumber(p.recall, p.valid);
+	j["f1"] = jsonNumber(p.f1, p.valid);
+	j["tp"] = p.tp;
+	j["fp"] = p.fp;
+	j["fn"] = p.fn;
+	return j;
 }
-}  // namespace
 
-int runLoops(int argc, char** argv)
+int runLoops(const LoopsOptions& o)
 {
-	const Options o(argc, argv,
-	                {"--loops", "--gt", "--distance", "--exclude-s", "--max-dt", "--csv", "--plot"},
-	                {"--json", "--help", "-h"});
-	if (o.flag("--help") || o.flag("-h"))
-	{
-		std::cout << kLoopsUsage;
-		return 0;
-	}
-	// Check the whole command line before reading any file.
-	const std::string loopsPath = o.require("--loops");
-	const std::string gtPath = o.require("--gt");
-	eval::LoopEvalParams params;
-	params.distance_m = o.number("--distance", params.distance_m);
-	params.exclude_s = o.number("--exclude-s", params.exclude_s);
-	params.maxDt = o.number("--max-dt", params.maxDt);
-	if (o.has("--csv") && o.get("--csv").empty())
-		throw UsageError("option --csv: empty file name");
-	if (o.has("--plot") && o.get("--plot").empty())
-		throw UsageError("option --plot: empty file name");
+	const std::string& loopsPath = o.loops;
+	const std::string& gtPath = o.gt;
+	const eval::LoopEvalParams& params = o.params;
 
 	const eval::LoopLog log = eval::loadLoopLog(loopsPath);
 	const io::Trajectory gt = io::loadTrajectory(gtPath, io::TrajectoryFormat::Tum);
@@ -82,35 +59,39 @@ int runLoops(int argc, char** argv)
 		throw std::runtime_error("ground-truth file '" + gtPath + "' has no poses");
 	const eval::LoopEvalResult r = eval::evaluateLoops(log, gt, params);
 
-	if (o.has("--csv"))
-		io::writeFileAtomically(o.get("--csv"), eval::loopSweepCsv(r));
-	if (o.has("--plot"))
+	if (!o.csv.empty())
+		io::writeFileAtomically(o.csv, eval::loopSweepCsv(r));
+	if (!o.plot.empty())
 	{
 		char title[256];
 		std::snprintf(title, sizeof(title), "Loop closure: %s (%g m, %g s)",
 		              std::filesystem::path(loopsPath).parent_path().filename().string().c_str(),
 		              params.distance_m, params.exclude_s);
-		eval::saveLoopPrPlot(o.get("--plot"), r, title);
+		eval::saveLoopPrPlot(o.plot, r, title);
 	}
 
 	const bool hasBest = r.best != eval::LoopEvalResult::npos;
-	if (o.flag("--json"))
+	if (o.json)
 	{
-		std::ostringstream j;
-		j << "{\"loops\": " << jsonString(loopsPath) << ", \"gt\": " << jsonString(gtPath)
-		  << ", \"distance_m\": " << jsonNumber(params.distance_m)
-		  << ", \"exclude_s\": " << jsonNumber(params.exclude_s)
-		  << ", \"max_dt\": " << jsonNumber(params.maxDt) << ", \"lines\": " << r.lines
-		  << ", \"queries\": " << r.queries << ", \"positives\": " << r.positives
-		  << ", \"recent_lines\": " << r.recentLines << ", \"accepted_lines\": " << r.acceptedLines
-		  << ", \"accepted_wrong\": " << r.acceptedWrong
-		  << ", \"accepted_recent\": " << r.acceptedRecent
-		  << ", \"detector\": " << jsonPoint(r.detector, false)
-		  << ", \"f1_max\": " << (hasBest ? jsonPoint(r.sweep[r.best], true) : "null")
-		  << ", \"thresholds\": " << r.sweep.size()
-		  << ", \"csv\": " << (o.has("--csv") ? jsonString(o.get("--csv")) : "null")
-		  << ", \"plot\": " << (o.has("--plot") ? jsonString(o.get("--plot")) : "null") << "}\n";
-		std::cout << j.str();
+		Json j;
+		j["loops"] = loopsPath;
+		j["gt"] = gtPath;
+		j["distance_m"] = jsonNumber(params.distance_m);
+		j["exclude_s"] = jsonNumber(params.exclude_s);
+		j["max_dt"] = jsonNumber(params.maxDt);
+		j["lines"] = r.lines;
+		j["queries"] = r.queries;
+		j["positives"] = r.positives;
+		j["recent_lines"] = r.recentLines;
+		j["accepted_lines"] = r.acceptedLines;
+		j["accepted_wrong"] = r.acceptedWrong;
+		j["accepted_recent"] = r.acceptedRecent;
+		j["detector"] = jsonPoint(r.detector, false);
+		j["f1_max"] = hasBest ? jsonPoint(r.sweep[r.best], true) : Json(nullptr);
+		j["thresholds"] = r.sweep.size();
+		j["csv"] = o.csv.empty() ? Json(nullptr) : Json(o.csv);
+		j["plot"] = o.plot.empty() ? Json(nullptr) : Json(o.plot);
+		std::cout << jsonLine(j);
 		return 0;
 	}
 
@@ -143,12 +124,49 @@ int runLoops(int argc, char** argv)
 	}
 	else
 		std::cout << "F1 max       : - (no positive query: recall is undefined)\n";
-	if (o.has("--csv"))
-		std::cout << "sweep        : " << o.get("--csv") << " (" << r.sweep.size()
-		          << " thresholds)\n";
-	if (o.has("--plot"))
-		std::cout << "plot         : " << o.get("--plot") << "\n";
+	if (!o.csv.empty())
+		std::cout << "sweep        : " << o.csv << " (" << r.sweep.size() << " thresholds)\n";
+	if (!o.plot.empty())
+		std::cout << "plot         : " << o.plot << "\n";
 	return 0;
+}
+
+}  // namespace
+
+Command addLoops(CLI::App& app)
+{
+	CLI::App* sub = cli::subcommand(
+	    app, "loops", "loop closure precision/recall against ground truth, PR plot", kLoopsAbout);
+	auto o = std::make_shared<LoopsOptions>();
+	sub->add_option("--loops", o->loops, "the detector's loops.txt F")
+	    ->required()
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--gt", o->gt, "ground-truth TUM trajectory G")
+	    ->required()
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--distance", o->params.distance_m, "largest distance of a correct loop (m)")
+	    ->check(nonNegativeNumber())
+	    ->type_name("M")
+	    ->capture_default_str();
+	sub->add_option("--exclude-s", o->params.exclude_s,
+	                "places younger than S seconds are no loops")
+	    ->check(nonNegativeNumber())
+	    ->type_name("S")
+	    ->capture_default_str();
+	sub->add_option("--max-dt", o->params.maxDt, "largest stamp difference to the ground truth (s)")
+	    ->check(nonNegativeNumber())
+	    ->type_name("S")
+	    ->capture_default_str();
+	sub->add_option("--csv", o->csv, "write the sweep: threshold,precision,recall,f1,tp,fp,fn")
+	    ->check(outputFile())
+	    ->type_name("FILE");
+	sub->add_option("--plot", o->plot, "write the precision-recall curve as PNG")
+	    ->check(outputFile())
+	    ->type_name("FILE");
+	sub->add_flag("--json", o->json, "print one JSON object instead of text");
+	return {sub, [o] { return runLoops(*o); }};
 }
 
 }  // namespace rasterslam_eval_cli

@@ -4,77 +4,48 @@
 
 using namespace rasterslam_eval_cli;
 
-namespace
-{
-struct Command
-{
-	const char* name;
-	const char* summary;
-	std::function<int(int, char**)> run;
-};
-
-// Add subcommands here.
-const std::vector<Command>& commands()
-{
-	static const std::vector<Command> cmds = {
-	    {"traj", "trajectory errors: ATE, per-frame RPE, KITTI devkit relative errors", runTraj},
-	    {"loops", "loop closure: precision/recall against ground truth, PR sweep and plot",
-	     runLoops},
-	    {"localmaps", "relative errors between the keyframes of each local map of a saved map",
-	     runLocalMaps},
-	    {"timings", "cost per scan and memory of runs from their timings.csv, and a plot",
-	     runTimings},
-	};
-	return cmds;
-}
-
-void printUsage(std::ostream& os)
-{
-	os << "Usage: rasterslam-eval <command> [options]\n\nCommands:\n";
-	std::size_t width = 0;
-	for (const auto& c : commands())
-		width = std::max(width, std::strlen(c.name));
-	for (const auto& c : commands())
-		os << "  " << std::left << std::setw(static_cast<int>(width + 4)) << c.name << c.summary
-		   << "\n";
-	os << "\nrasterslam-eval <command> --help shows the options of a command.\n";
-}
-}  // namespace
-
 int main(int argc, char** argv)
 {
-	if (argc < 2)
+	CLI::App app("Accuracy and cost metrics of SLAM outputs.", "rasterslam-eval");
+	cli::configure(app);
+	app.require_subcommand(1);
+	// Add subcommands here.
+	const std::vector<Command> commands = {addTraj(app), addLoops(app), addLocalMaps(app),
+	                                       addTimings(app)};
+	app.footer(std::string("rasterslam-eval COMMAND --help shows the options of a command.\n\n") +
+	           cli::exitCodesFooter());
+
+	if (argc >= 2)
 	{
-		printUsage(std::cerr);
-		return 2;
+		const std::string first = argv[1];
+		if (first == "help")
+		{
+			std::cout << app.help();
+			return cli::kExitOk;
+		}
+		// CLI11 would only say that a subcommand is required.
+		bool known = false;
+		for (const auto& c : commands)
+			known = known || c.app->get_name() == first;
+		if (!known && first.rfind('-', 0) != 0)
+			cli::usageError("rasterslam-eval", "unknown command '" + first + "'");
 	}
-	const std::string cmd = argv[1];
-	if (cmd == "--help" || cmd == "-h" || cmd == "help")
+	if (const int code = cli::parse(app, argc, argv); code >= 0)
+		return code;
+
+	for (const auto& c : commands)
 	{
-		printUsage(std::cout);
-		return 0;
-	}
-	for (const auto& c : commands())
-	{
-		if (cmd != c.name)
+		if (!c.app->parsed())
 			continue;
 		try
 		{
-			return c.run(argc - 2, argv + 2);
-		}
-		catch (const UsageError& e)
-		{
-			std::cerr << "rasterslam-eval " << cmd << ": " << e.what() << "\n"
-			          << "(rasterslam-eval " << cmd << " --help for the options)\n";
-			return 2;
+			return c.run();
 		}
 		catch (const std::exception& e)
 		{
-			std::cerr << "rasterslam-eval " << cmd << ": error: " << e.what() << "\n";
-			return 1;
+			std::cerr << "rasterslam-eval " << c.app->get_name() << ": error: " << e.what() << "\n";
+			return cli::kExitError;
 		}
 	}
-	std::cerr << "rasterslam-eval: unknown command '" << cmd << "'\n";
-	printUsage(std::cerr);
-	return 2;
+	return cli::kExitUsage;  // not reached: require_subcommand(1)
 }

@@ -11,28 +11,15 @@ namespace rasterslam_eval_cli
 {
 namespace
 {
-const char* kTimingsUsage =
-    R"(Usage: rasterslam-eval timings RUN_DIR [RUN_DIR ...] [options]
-
-Per-scan cost and resident memory of runs: RUN_DIR is the --out folder of rasterslam run
-(its timings.csv is read) or a timings.csv itself. Per run:
-  ms per scan   mean of total and of each stage over the first and the last 10 % of the
-                scans, and last / first
-  rss           resident memory (MB): max over the first 10 %, max over the last 10 %, peak
-  rss growth    MB per 1000 scans, slope of a least-squares line over the second half
-  after scan K  with --after-scan: max rss over scans K-100..K, and last 10 % max / it
-
-Options:
-  --label NAME          name of a run in the text, JSON and plot; once per RUN_DIR, in the
-                        same order (default: the folder name)
-  --after-scan K        also report the memory after scan K (e.g. the end of a lap)
-  --plot FILE           write a PNG: rss per scan above, ms per scan below (total solid,
-                        loop closure dashed)
-  --window N            scans of the plot's moving average of ms per scan (default 100)
-  --json                print one JSON object instead of text
-  -h, --help            this help
-Exit codes: 0 success, 1 bad input file, 2 bad command line.
-)";
+// Below the options in --help (the formatter wraps it at 100 columns, keeping line breaks).
+const char* kTimingsAbout =
+    "Per-scan cost and resident memory of runs: RUN_DIR is the --out folder of rasterslam run "
+    "(its timings.csv is read) or a timings.csv itself. Per run:\n"
+    "ms per scan: mean of total and of each stage over the first and the last 10 % of the "
+    "scans; last / first;\n"
+    "rss: resident memory (MB): max over the first 10 %, max over the last 10 %, peak;\n"
+    "rss growth: MB per 1000 scans, slope of a least-squares line over the second half;\n"
+    "after scan K: with --after-scan, max rss over scans K-100..K, and last 10 % max / it.";
 
 namespace fs = std::filesystem;
 
@@ -124,7 +111,7 @@ Run loadRun(const std::string& file, const std::string& label)
 		{
 			throw std::runtime_error(where(lineNo) + "index " + f[indexCol] +
 			                         " is not above the previous scan's " +
-			                         jsonNumber(run.index.back()));
+			                         numberText(run.index.back()));
 		}
 		run.index.push_back(index);
 		run.rss.push_back(number(rssCol));
@@ -209,7 +196,7 @@ Summary summarize(const Run& r, bool after, double afterScan)
 		if (!any)
 		{
 			throw std::runtime_error("'" + r.file + "': no scan with index in " +
-			                         jsonNumber(s.afterFrom) + ".." + jsonNumber(s.afterTo) +
+			                         numberText(s.afterFrom) + ".." + numberText(s.afterTo) +
 			                         " (--after-scan)");
 		}
 	}
@@ -463,18 +450,6 @@ void savePlot(const std::string& path, const cv::Mat& img)
 	io::writeFileAtomically(path, std::string(png.begin(), png.end()));
 }
 
-/** Whole number option in [min, 1e9]. */
-double wholeNumber(const Options& o, const std::string& key, double def, double min)
-{
-	const double v = o.number(key, def);
-	if (v != std::floor(v) || v < min || v > 1e9)
-	{
-		throw UsageError("option " + key + ": expected a whole number >= " + jsonNumber(min) +
-		                 ", got '" + o.get(key) + "'");
-	}
-	return v;
-}
-
 /** The run's name when no --label is given: its folder ("runs/a/" and "runs/a/timings.csv"
  *  are both "a"). */
 std::string folderName(const std::string& arg, bool isFile)
@@ -486,53 +461,22 @@ std::string folderName(const std::string& arg, bool isFile)
 		p = p.parent_path();
 	return p.filename().string();
 }
-}  // namespace
-
-int runTimings(int argc, char** argv)
+struct TimingsOptions
 {
-	// Options takes "--key value" pairs only: take out the run folders and the repeated --label.
-	const std::vector<std::string> valued = {"--plot", "--window", "--after-scan"};
 	std::vector<std::string> dirs, labels;
-	std::vector<char*> rest;
-	for (int i = 0; i < argc; ++i)
-	{
-		const std::string a = argv[i];
-		if (a == "--label")
-		{
-			if (i + 1 >= argc)
-				throw UsageError("option --label needs a value");
-			labels.push_back(argv[++i]);
-		}
-		else if (a.rfind("--label=", 0) == 0)
-			labels.push_back(a.substr(8));
-		else if (a.empty() || a[0] != '-')
-			dirs.push_back(a);
-		else
-		{
-			rest.push_back(argv[i]);
-			if (std::find(valued.begin(), valued.end(), a) != valued.end() && i + 1 < argc)
-				rest.push_back(argv[++i]);
-		}
-	}
-	const Options o(static_cast<int>(rest.size()), rest.data(), valued, {"--json", "--help", "-h"});
-	if (o.flag("--help") || o.flag("-h"))
-	{
-		std::cout << kTimingsUsage;
-		return 0;
-	}
-	// Check the whole command line before reading any file.
-	if (dirs.empty())
-		throw UsageError("no RUN_DIR given");
-	if (!labels.empty() && labels.size() != dirs.size())
-	{
-		throw UsageError("give --label once per RUN_DIR (RUN_DIR: " + std::to_string(dirs.size()) +
-		                 ", --label: " + std::to_string(labels.size()) + ")");
-	}
-	const auto window = static_cast<std::size_t>(wholeNumber(o, "--window", 100, 1));
-	const bool after = o.has("--after-scan");
-	const double afterScan = wholeNumber(o, "--after-scan", 0, 0);
-	if (o.has("--plot") && o.get("--plot").empty())
-		throw UsageError("option --plot: empty file name");
+	std::string plot;
+	std::size_t window = 100, afterScan = 0;
+	bool after = false;  //!< --after-scan given
+	bool json = false;
+};
+
+int runTimings(const TimingsOptions& o)
+{
+	const std::vector<std::string>& dirs = o.dirs;
+	const std::vector<std::string>& labels = o.labels;
+	const std::size_t window = o.window;
+	const bool after = o.after;
+	const auto afterScan = static_cast<double>(o.afterScan);
 
 	std::vector<Run> runs;
 	std::vector<Summary> sums;
@@ -543,44 +487,45 @@ int runTimings(int argc, char** argv)
 		runs.push_back(loadRun(file, labels.empty() ? folderName(dirs[i], isFile) : labels[i]));
 		sums.push_back(summarize(runs.back(), after, afterScan));
 	}
-	if (o.has("--plot"))
-		savePlot(o.get("--plot"), renderPlot(runs, window));
+	if (!o.plot.empty())
+		savePlot(o.plot, renderPlot(runs, window));
 
-	if (o.flag("--json"))
+	if (o.json)
 	{
-		std::ostringstream j;
-		j << "{\"runs\": [";
+		Json j;
+		j["runs"] = Json::array();
 		for (std::size_t i = 0; i < runs.size(); ++i)
 		{
 			const Summary& s = sums[i];
-			j << (i ? ", " : "") << "{\"label\": " << jsonString(runs[i].label)
-			  << ", \"file\": " << jsonString(runs[i].file) << ", \"scans\": " << s.scans
-			  << ", \"tenth_scans\": " << s.tenth;
+			Json run;
+			run["label"] = runs[i].label;
+			run["file"] = runs[i].file;
+			run["scans"] = s.scans;
+			run["tenth_scans"] = s.tenth;
 			for (std::size_t k = 0; k < kStages; ++k)
 			{
-				j << ", \"" << kStageColumns[k] << "\": {\"first\": " << jsonNumber(s.first[k])
-				  << ", \"last\": " << jsonNumber(s.last[k])
-				  << ", \"ratio\": " << jsonNumber(ratio(s.last[k], s.first[k])) << "}";
+				run[kStageColumns[k]] = {{"first", jsonNumber(s.first[k])},
+				                         {"last", jsonNumber(s.last[k])},
+				                         {"ratio", jsonNumber(ratio(s.last[k], s.first[k]))}};
 			}
-			j << ", \"rss_first_max_mb\": " << jsonNumber(s.rssFirstMax)
-			  << ", \"rss_last_max_mb\": " << jsonNumber(s.rssLastMax)
-			  << ", \"rss_peak_mb\": " << jsonNumber(s.rssPeak)
-			  << ", \"rss_growth_mb_per_1000_scans\": " << jsonNumber(s.growthPer1000)
-			  << ", \"after_scan\": ";
+			run["rss_first_max_mb"] = jsonNumber(s.rssFirstMax);
+			run["rss_last_max_mb"] = jsonNumber(s.rssLastMax);
+			run["rss_peak_mb"] = jsonNumber(s.rssPeak);
+			run["rss_growth_mb_per_1000_scans"] = jsonNumber(s.growthPer1000);
+			run["after_scan"] = nullptr;
 			if (after)
 			{
-				j << "{\"scan\": " << jsonNumber(s.afterTo)
-				  << ", \"from\": " << jsonNumber(s.afterFrom)
-				  << ", \"rss_max_mb\": " << jsonNumber(s.afterMax)
-				  << ", \"last_ratio\": " << jsonNumber(ratio(s.rssLastMax, s.afterMax)) << "}";
+				// Scan numbers are whole: written as integers.
+				run["after_scan"] = {{"scan", static_cast<std::uint64_t>(s.afterTo)},
+				                     {"from", static_cast<std::uint64_t>(s.afterFrom)},
+				                     {"rss_max_mb", jsonNumber(s.afterMax)},
+				                     {"last_ratio", jsonNumber(ratio(s.rssLastMax, s.afterMax))}};
 			}
-			else
-				j << "null";
-			j << "}";
+			j["runs"].push_back(std::move(run));
 		}
-		j << "], \"window\": " << window
-		  << ", \"plot\": " << (o.has("--plot") ? jsonString(o.get("--plot")) : "null") << "}\n";
-		std::cout << j.str();
+		j["window"] = window;
+		j["plot"] = o.plot.empty() ? Json(nullptr) : Json(o.plot);
+		std::cout << jsonLine(j);
 		return 0;
 	}
 
@@ -606,19 +551,67 @@ int runTimings(int argc, char** argv)
 		          << "\n"
 		          << "rss growth   : " << fixed(s.growthPer1000, 3)
 		          << " MB per 1000 scans (least squares over scans "
-		          << jsonNumber(runs[i].index[n / 2]) << ".." << jsonNumber(runs[i].index.back())
+		          << numberText(runs[i].index[n / 2]) << ".." << numberText(runs[i].index.back())
 		          << ")\n";
 		if (after)
 		{
 			std::cout << "after scan   : max " << fixed(s.afterMax, 1) << " MB over scans "
-			          << jsonNumber(s.afterFrom) << ".." << jsonNumber(s.afterTo)
-			          << "; last 10 % / after scan " << jsonNumber(s.afterTo) << " = "
+			          << numberText(s.afterFrom) << ".." << numberText(s.afterTo)
+			          << "; last 10 % / after scan " << numberText(s.afterTo) << " = "
 			          << fixed(ratio(s.rssLastMax, s.afterMax), 3) << "\n";
 		}
 	}
-	if (o.has("--plot"))
-		std::cout << "\nplot         : " << o.get("--plot") << "\n";
+	if (!o.plot.empty())
+		std::cout << "\nplot         : " << o.plot << "\n";
 	return 0;
+}
+
+}  // namespace
+
+Command addTimings(CLI::App& app)
+{
+	CLI::App* sub = cli::subcommand(app, "timings",
+	                                "cost per scan and memory of runs (timings.csv), and a plot",
+	                                kTimingsAbout);
+	auto o = std::make_shared<TimingsOptions>();
+	sub->add_option("RUN_DIR", o->dirs, "run folders (rasterslam run --out) or timings.csv files")
+	    ->required()
+	    ->check(cli::unnamed(CLI::ExistingPath))
+	    ->type_name("");
+	// One value each time: "--label a DIR" leaves DIR to RUN_DIR.
+	sub->add_option("--label", o->labels,
+	                "name of a run in the text, JSON and plot; once per RUN_DIR, in the same order "
+	                "(default: the folder name)")
+	    ->allow_extra_args(false)
+	    ->type_name("NAME");
+	CLI::Option* after =
+	    sub->add_option("--after-scan", o->afterScan,
+	                    "also report the memory after scan K (e.g. the end of a lap)")
+	        ->check(wholeNumber(0, 1000000000))
+	        ->type_name("K");
+	sub->add_option("--plot", o->plot,
+	                "write a PNG: rss per scan above, ms per scan below (total solid, loop "
+	                "closure dashed)")
+	    ->check(outputFile())
+	    ->type_name("FILE");
+	sub->add_option("--window", o->window, "scans of the plot's moving average of ms per scan")
+	    ->check(wholeNumber(1, 1000000000))
+	    ->type_name("N")
+	    ->capture_default_str();
+	sub->add_flag("--json", o->json, "print one JSON object instead of text");
+	return {sub, [o, after]
+	        {
+		        o->after = after->count() > 0;
+		        // Checks CLI11 cannot express, before reading any file.
+		        if (!o->labels.empty() && o->labels.size() != o->dirs.size())
+		        {
+			        cli::usageError("rasterslam-eval timings",
+			                        "give --label once per RUN_DIR (RUN_DIR: " +
+			                            std::to_string(o->dirs.size()) +
+			                            ", --label: " + std::to_string(o->labels.size()) + ")");
+		        }
+		        return runTimings(*o);
+	        }};
 }
 
 }  // namespace rasterslam_eval_cli

@@ -9,46 +9,80 @@ namespace rasterslam_eval_cli
 {
 namespace
 {
-const char* kTrajUsage =
-    R"(Usage: rasterslam-eval traj --gt G --est E [options]
+// Below the options in --help (the formatter wraps it at 100 columns, keeping line breaks).
+const char* kTrajAbout =
+    "Trajectory accuracy of an estimate E (--est) against a ground truth G (--gt):\n"
+    "ATE: absolute trajectory error after the best SE(3) alignment (Umeyama, no scale);\n"
+    "RPE: relative pose error between consecutive poses (per frame);\n"
+    "KITTI: the odometry devkit's relative translation (%) and rotation (deg/m) errors.\n"
+    "Files are TUM (\"t x y z qx qy qz qw\") or KITTI (12 numbers of a 3x4 [R|t]), detected by "
+    "their column count. TUM vs TUM are associated by nearest time stamp; otherwise by index.";
 
-Trajectory accuracy of an estimate E against a ground truth G:
-  ATE   absolute trajectory error after the best SE(3) alignment (Umeyama, no scale)
-  RPE   relative pose error between consecutive poses (per frame)
-  KITTI the odometry devkit's relative translation (%) and rotation (deg/m) errors
-Files are TUM ("t x y z qx qy qz qw") or KITTI (12 numbers of a 3x4 [R|t]), detected by
-their column count. TUM vs TUM are associated by nearest time stamp; otherwise by index.
-
-Options:
-  --gt FILE             ground-truth trajectory (required)
-  --est FILE            estimated trajectory (required)
-  --calib FILE          KITTI calib.txt: G holds cam0 poses; convert them to the Velodyne
-                        frame with inv(Tr) * P * Tr (rasterslam outputs Velodyne poses)
-  --est-calib FILE      same conversion for E (when E is a KITTI cam0 pose file too)
-  --gt-format F         auto|tum|kitti (default auto); --est-format F likewise
-  --times FILE          KITTI times.txt: stamps for the KITTI-format file(s)
-  --associate M         auto|index|stamp (default auto)
-  --align A             se3: fit the estimate to the ground truth (default); or a given
-                        T_gt_est as x,y,z,qx,qy,qz,qw (what --json prints as T_gt_est), e.g.
-                        another session's alignment, to judge sessions of one map in one frame
-  --max-dt S            largest stamp difference when associating by time (default 0.02)
-  --segments SPEC       segment lengths in metres, start:end:step or a list
-                        (default 100:800:100; use 10:80:10 for short clips)
-  --step N              first frames every N associated poses (default 10, as the devkit)
-  --json                print one JSON object instead of text
-  -h, --help            this help
-Exit codes: 0 success, 1 bad input file, 2 bad command line.
-)";
-
-io::TrajectoryFormat parseFormat(const std::string& opt, const std::string& s)
+struct TrajOptions
 {
-	if (s == "auto")
-		return io::TrajectoryFormat::Auto;
+	std::string gt, est, calib, estCalib, times;
+	std::string gtFormat = "auto", estFormat = "auto", associate = "auto", align = "se3";
+	std::string segments = "100:800:100";
+	double maxDt = 0.02;
+	std::size_t step = 10;
+	bool json = false;
+};
+
+io::TrajectoryFormat parseFormat(const std::string& s)
+{
 	if (s == "tum")
 		return io::TrajectoryFormat::Tum;
 	if (s == "kitti")
 		return io::TrajectoryFormat::Kitti;
-	throw UsageError("option " + opt + ": expected auto, tum or kitti, got '" + s + "'");
+	return io::TrajectoryFormat::Auto;  // "auto": CLI11 lets no other value through
+}
+
+/** --align: "se3" (fit: no value) or a given T_gt_est as x,y,z,qx,qy,qz,qw (as --json prints
+ *  it). Throws std::invalid_argument with what is wrong. */
+std::optional<Eigen::Isometry3d> parseAlign(const std::string& al)
+{
+	if (al == "se3")
+		return std::nullopt;
+	std::vector<double> v;
+	std::stringstream ss(al);
+	std::string item;
+	while (std::getline(ss, item, ','))
+	{
+		char* end = nullptr;
+		const double x = std::strtod(item.c_str(), &end);
+		if (item.empty() || *end || !std::isfinite(x))
+			throw std::invalid_argument("expected se3 or x,y,z,qx,qy,qz,qw, got '" + al + "'");
+		v.push_back(x);
+	}
+	const Eigen::Quaterniond q(v.size() == 7 ? v[6] : 0, v.size() == 7 ? v[3] : 0,
+	                           v.size() == 7 ? v[4] : 0, v.size() == 7 ? v[5] : 0);
+	if (v.size() != 7 || std::abs(q.norm() - 1) > 1e-3)
+		throw std::invalid_argument(
+		    "expected se3 or x,y,z,qx,qy,qz,qw with a unit quaternion, got '" + al + "'");
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.linear() = q.normalized().toRotationMatrix();
+	T.translation() = Eigen::Vector3d(v[0], v[1], v[2]);
+	return T;
+}
+
+/** A validator from a parser that throws std::invalid_argument. */
+template <typename Parse>
+CLI::Validator parses(Parse parse)
+{
+	return CLI::Validator(
+	    [parse](std::string& s) -> std::string
+	    {
+		    try
+		    {
+			    parse(s);
+			    return {};
+		    }
+		    catch (const std::invalid_argument& e)
+		    {
+			    return e.what();
+		    }
+	    },
+	    "");
 }
 
 struct Input
@@ -58,21 +92,20 @@ struct Input
 	bool stamped = false;  //!< real time stamps (TUM, or KITTI with --times)
 };
 
-Input loadInput(const Options& o, const std::string& fileOpt, const std::string& fmtOpt,
-                const std::string& calibOpt)
+Input loadInput(const TrajOptions& o, const std::string& path, const std::string& format,
+                const std::string& calib)
 {
 	Input in;
-	const std::string path = o.require(fileOpt);
-	in.traj = io::loadTrajectory(path, parseFormat(fmtOpt, o.get(fmtOpt, "auto")), &in.format);
+	in.traj = io::loadTrajectory(path, parseFormat(format), &in.format);
 	if (in.traj.empty())
 		throw std::runtime_error("trajectory file '" + path + "' has no poses");
 	in.stamped = in.format == io::TrajectoryFormat::Tum;
-	if (in.format == io::TrajectoryFormat::Kitti && o.has("--times"))
+	if (in.format == io::TrajectoryFormat::Kitti && !o.times.empty())
 	{
-		const auto times = io::loadKittiTimes(o.get("--times"));
+		const auto times = io::loadKittiTimes(o.times);
 		if (times.size() != in.traj.size())
 		{
-			throw std::runtime_error("times file '" + o.get("--times") + "' has " +
+			throw std::runtime_error("times file '" + o.times + "' has " +
 			                         std::to_string(times.size()) + " stamps but '" + path +
 			                         "' has " + std::to_string(in.traj.size()) + " poses");
 		}
@@ -80,86 +113,31 @@ Input loadInput(const Options& o, const std::string& fileOpt, const std::string&
 			in.traj[i].stamp = times[i];
 		in.stamped = true;
 	}
-	if (o.has(calibOpt))
-		in.traj = io::kittiCameraToVelodyne(in.traj, io::loadKittiCalibTr(o.get(calibOpt)));
+	if (!calib.empty())
+		in.traj = io::kittiCameraToVelodyne(in.traj, io::loadKittiCalibTr(calib));
 	return in;
 }
-}  // namespace
 
-int runTraj(int argc, char** argv)
+int runTraj(const TrajOptions& o)
 {
-	const Options o(argc, argv,
-	                {"--gt", "--est", "--calib", "--est-calib", "--gt-format", "--est-format",
-	                 "--times", "--associate", "--max-dt", "--segments", "--step", "--align"},
-	                {"--json", "--help", "-h"});
-	if (o.flag("--help") || o.flag("-h"))
-	{
-		std::cout << kTrajUsage;
-		return 0;
-	}
-	// Check the whole command line before reading any file.
-	o.require("--gt");
-	o.require("--est");
-	parseFormat("--gt-format", o.get("--gt-format", "auto"));
-	parseFormat("--est-format", o.get("--est-format", "auto"));
-	const std::string segSpec = o.get("--segments", "100:800:100");
-	std::vector<double> lengths;
-	try
-	{
-		lengths = eval::parseSegmentSpec(segSpec);
-	}
-	catch (const std::invalid_argument& e)
-	{
-		throw UsageError(std::string("option --segments: ") + e.what());
-	}
-	const double maxDt = o.number("--max-dt", 0.02);
-	const double stepD = o.number("--step", 10);
-	if (stepD < 1 || stepD != std::floor(stepD))
-		throw UsageError("option --step: expected a whole number >= 1");
-	const auto step = static_cast<std::size_t>(stepD);
-	const std::string assocMode = o.get("--associate", "auto");
-	if (assocMode != "auto" && assocMode != "index" && assocMode != "stamp")
-		throw UsageError("option --associate: expected auto, index or stamp, got '" + assocMode +
-		                 "'");
+	// CLI11 has checked every option: these parse what it let through.
+	const std::vector<double> lengths = eval::parseSegmentSpec(o.segments);
+	const std::optional<Eigen::Isometry3d> fixedAlign = parseAlign(o.align);
+	const std::size_t step = o.step;
+	const double maxDt = o.maxDt;
+	const std::string& assocMode = o.associate;
+	const std::string& segSpec = o.segments;
 
-	// --align se3 (fit) or x,y,z,qx,qy,qz,qw: a given T_gt_est (as --json prints it).
-	std::optional<Eigen::Isometry3d> fixedAlign;
-	if (const std::string al = o.get("--align", "se3"); al != "se3")
-	{
-		std::vector<double> v;
-		std::stringstream ss(al);
-		std::string item;
-		while (std::getline(ss, item, ','))
-		{
-			char* end = nullptr;
-			const double x = std::strtod(item.c_str(), &end);
-			if (item.empty() || *end || !std::isfinite(x))
-				throw UsageError("option --align: expected se3 or x,y,z,qx,qy,qz,qw, got '" + al +
-				                 "'");
-			v.push_back(x);
-		}
-		const Eigen::Quaterniond q(v.size() == 7 ? v[6] : 0, v.size() == 7 ? v[3] : 0,
-		                           v.size() == 7 ? v[4] : 0, v.size() == 7 ? v[5] : 0);
-		if (v.size() != 7 || std::abs(q.norm() - 1) > 1e-3)
-			throw UsageError(
-			    "option --align: expected se3 or x,y,z,qx,qy,qz,qw with a unit quaternion, got '" +
-			    al + "'");
-		fixedAlign = Eigen::Isometry3d::Identity();
-		fixedAlign->linear() = q.normalized().toRotationMatrix();
-		fixedAlign->translation() = Eigen::Vector3d(v[0], v[1], v[2]);
-	}
-
-	const Input gt = loadInput(o, "--gt", "--gt-format", "--calib");
-	const Input est = loadInput(o, "--est", "--est-format", "--est-calib");
+	const Input gt = loadInput(o, o.gt, o.gtFormat, o.calib);
+	const Input est = loadInput(o, o.est, o.estFormat, o.estCalib);
 
 	const bool byStamp = assocMode == "stamp" || (assocMode == "auto" && gt.stamped && est.stamped);
 	const eval::Association a = eval::associate(gt.traj, est.traj, !byStamp, maxDt);
 	if (a.gt.size() < 2)
 	{
 		throw std::runtime_error("only " + std::to_string(a.gt.size()) +
-		                         " pose pairs associated between '" + o.get("--gt") + "' and '" +
-		                         o.get("--est") + "'" +
-		                         (byStamp ? " (check the stamps or --max-dt)" : ""));
+		                         " pose pairs associated between '" + o.gt + "' and '" + o.est +
+		                         "'" + (byStamp ? " (check the stamps or --max-dt)" : ""));
 	}
 
 	const eval::AteResult ate = eval::computeAte(gt.traj, est.traj, a, fixedAlign);
@@ -181,52 +159,57 @@ int runTraj(int argc, char** argv)
 		     << " m; try --segments 10:80:10";
 	}
 
-	if (o.flag("--json"))
+	if (o.json)
 	{
-		std::ostringstream j;
-		j << "{\"gt\": " << jsonString(o.get("--gt")) << ", \"est\": " << jsonString(o.get("--est"))
-		  << ", \"n_gt\": " << gt.traj.size() << ", \"n_est\": " << est.traj.size()
-		  << ", \"n_associated\": " << a.gt.size() << ", \"association\": \""
-		  << (byStamp ? "stamp" : "index") << "\", \"path_length_m\": " << jsonNumber(pathLength)
-		  << ", \"ate_rmse_m\": " << jsonNumber(ate.rmse_m)
-		  << ", \"ate_mean_m\": " << jsonNumber(ate.mean_m)
-		  << ", \"ate_median_m\": " << jsonNumber(ate.median_m)
-		  << ", \"ate_max_m\": " << jsonNumber(ate.max_m) << ", \"ate_alignment\": \""
-		  << (fixedAlign ? "given" : "se3") << "\", \"T_gt_est\": \""
-		  << mrpt::format("%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g", alignT.x(), alignT.y(), alignT.z(),
-		                  alignQ.x(), alignQ.y(), alignQ.z(), alignQ.w())
-		  << "\", \"rpe_pairs\": " << rpe.n
-		  << ", \"rpe_trans_rmse_m\": " << jsonNumber(rpe.trans_rmse_m)
-		  << ", \"rpe_trans_mean_m\": " << jsonNumber(rpe.trans_mean_m)
-		  << ", \"rpe_rot_rmse_deg\": " << jsonNumber(rpe.rot_rmse_deg)
-		  << ", \"rpe_rot_mean_deg\": " << jsonNumber(rpe.rot_mean_deg) << ", \"segments\": [";
-		for (std::size_t i = 0; i < lengths.size(); ++i)
-			j << (i ? ", " : "") << jsonNumber(lengths[i]);
-		j << "], \"step\": " << step << ", \"rel_count\": " << rel.count
-		  << ", \"rel_trans_pct\": " << jsonNumber(rel.t_err_pct, relOk)
-		  << ", \"rel_rot_deg_per_m\": " << jsonNumber(rel.r_err_deg_per_m, relOk)
-		  << ", \"per_length\": [";
-		for (std::size_t i = 0; i < rel.perLength.size(); ++i)
+		Json j;
+		j["gt"] = o.gt;
+		j["est"] = o.est;
+		j["n_gt"] = gt.traj.size();
+		j["n_est"] = est.traj.size();
+		j["n_associated"] = a.gt.size();
+		j["association"] = byStamp ? "stamp" : "index";
+		j["path_length_m"] = jsonNumber(pathLength);
+		j["ate_rmse_m"] = jsonNumber(ate.rmse_m);
+		j["ate_mean_m"] = jsonNumber(ate.mean_m);
+		j["ate_median_m"] = jsonNumber(ate.median_m);
+		j["ate_max_m"] = jsonNumber(ate.max_m);
+		j["ate_alignment"] = fixedAlign ? "given" : "se3";
+		// A string that --align takes back.
+		j["T_gt_est"] = mrpt::format("%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g", alignT.x(), alignT.y(),
+		                             alignT.z(), alignQ.x(), alignQ.y(), alignQ.z(), alignQ.w());
+		j["rpe_pairs"] = rpe.n;
+		j["rpe_trans_rmse_m"] = jsonNumber(rpe.trans_rmse_m);
+		j["rpe_trans_mean_m"] = jsonNumber(rpe.trans_mean_m);
+		j["rpe_rot_rmse_deg"] = jsonNumber(rpe.rot_rmse_deg);
+		j["rpe_rot_mean_deg"] = jsonNumber(rpe.rot_mean_deg);
+		j["segments"] = Json::array();
+		for (const double l : lengths)
+			j["segments"].push_back(jsonNumber(l));
+		j["step"] = step;
+		j["rel_count"] = rel.count;
+		j["rel_trans_pct"] = jsonNumber(rel.t_err_pct, relOk);
+		j["rel_rot_deg_per_m"] = jsonNumber(rel.r_err_deg_per_m, relOk);
+		j["per_length"] = Json::array();
+		for (const auto& pl : rel.perLength)
 		{
-			const auto& pl = rel.perLength[i];
-			j << (i ? ", " : "") << "{\"length_m\": " << jsonNumber(pl.length_m)
-			  << ", \"count\": " << pl.count
-			  << ", \"t_err_pct\": " << jsonNumber(pl.t_err_pct, pl.count > 0)
-			  << ", \"r_err_deg_per_m\": " << jsonNumber(pl.r_err_deg_per_m, pl.count > 0) << "}";
+			j["per_length"].push_back(
+			    {{"length_m", jsonNumber(pl.length_m)},
+			     {"count", pl.count},
+			     {"t_err_pct", jsonNumber(pl.t_err_pct, pl.count > 0)},
+			     {"r_err_deg_per_m", jsonNumber(pl.r_err_deg_per_m, pl.count > 0)}});
 		}
-		j << "], \"note\": " << (relOk ? "null" : jsonString(note.str())) << "}\n";
-		std::cout << j.str();
+		j["note"] = relOk ? Json(nullptr) : Json(note.str());
+		std::cout << jsonLine(j);
 		return 0;
 	}
 
 	auto fmtName = [](io::TrajectoryFormat f)
 	{ return f == io::TrajectoryFormat::Tum ? "TUM" : "KITTI"; };
 	char buf[256];
-	std::cout << "ground truth : " << o.get("--gt") << " (" << fmtName(gt.format) << ", "
-	          << gt.traj.size() << " poses" << (o.has("--calib") ? ", cam0 -> Velodyne" : "")
-	          << ")\n"
-	          << "estimate     : " << o.get("--est") << " (" << fmtName(est.format) << ", "
-	          << est.traj.size() << " poses" << (o.has("--est-calib") ? ", cam0 -> Velodyne" : "")
+	std::cout << "ground truth : " << o.gt << " (" << fmtName(gt.format) << ", " << gt.traj.size()
+	          << " poses" << (!o.calib.empty() ? ", cam0 -> Velodyne" : "") << ")\n"
+	          << "estimate     : " << o.est << " (" << fmtName(est.format) << ", "
+	          << est.traj.size() << " poses" << (!o.estCalib.empty() ? ", cam0 -> Velodyne" : "")
 	          << ")\n"
 	          << "associated   : " << a.gt.size() << " pairs by "
 	          << (byStamp ? "time stamp" : "index") << "\n";
@@ -263,6 +246,73 @@ int runTraj(int argc, char** argv)
 		std::cout << buf;
 	}
 	return 0;
+}
+
+}  // namespace
+
+Command addTraj(CLI::App& app)
+{
+	CLI::App* sub = cli::subcommand(
+	    app, "traj", "trajectory errors: ATE, per-frame RPE, KITTI relative errors", kTrajAbout);
+	auto o = std::make_shared<TrajOptions>();
+	const auto formats = cli::unnamed(CLI::IsMember({"auto", "tum", "kitti"}));
+	sub->add_option("--gt", o->gt, "ground-truth trajectory G")
+	    ->required()
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--est", o->est, "estimated trajectory E")
+	    ->required()
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--calib", o->calib,
+	                "KITTI calib.txt: G holds cam0 poses; convert them to the Velodyne frame with "
+	                "inv(Tr) * P * Tr (rasterslam outputs Velodyne poses)")
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--est-calib", o->estCalib,
+	                "same conversion for E (when E is a KITTI cam0 pose file too)")
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--gt-format", o->gtFormat, "format of G: auto, tum or kitti")
+	    ->check(formats)
+	    ->type_name("F")
+	    ->capture_default_str();
+	sub->add_option("--est-format", o->estFormat, "format of E: auto, tum or kitti")
+	    ->check(formats)
+	    ->type_name("F")
+	    ->capture_default_str();
+	sub->add_option("--times", o->times, "KITTI times.txt: stamps for the KITTI-format file(s)")
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--associate", o->associate,
+	                "pose pairs by auto, index or stamp (auto: by time stamp when both files "
+	                "have stamps, else by index)")
+	    ->check(cli::unnamed(CLI::IsMember({"auto", "index", "stamp"})))
+	    ->type_name("M")
+	    ->capture_default_str();
+	sub->add_option("--align", o->align,
+	                "se3: fit the estimate to the ground truth; or a given T_gt_est as "
+	                "x,y,z,qx,qy,qz,qw (what --json prints as T_gt_est), e.g. another session's "
+	                "alignment, to judge sessions of one map in one frame")
+	    ->check(parses(parseAlign))
+	    ->type_name("A")
+	    ->capture_default_str();
+	sub->add_option("--max-dt", o->maxDt, "largest stamp difference when associating by time (s)")
+	    ->check(nonNegativeNumber())
+	    ->type_name("S")
+	    ->capture_default_str();
+	sub->add_option("--segments", o->segments,
+	                "segment lengths in metres, start:end:step or a list (use 10:80:10 for short "
+	                "clips)")
+	    ->check(parses(eval::parseSegmentSpec))
+	    ->type_name("SPEC")
+	    ->capture_default_str();
+	sub->add_option("--step", o->step, "first frames every N associated poses (10: as the devkit)")
+	    ->check(wholeNumber(1, 1000000000))
+	    ->type_name("N")
+	    ->capture_default_str();
+	sub->add_flag("--json", o->json, "print one JSON object instead of text");
+	return {sub, [o] { return runTraj(*o); }};
 }
 
 }  // namespace rasterslam_eval_cli

@@ -1,6 +1,7 @@
 // rasterslam-sim: writes a simulated LiDAR rawlog (with ground truth) from a scenario file.
 #include <mrpt/maps/registerAllClasses.h>
 #include <mrpt/obs/registerAllClasses.h>
+#include <rasterslam/cli/app.h>
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/io/trajectory_io.h>
 #include <rasterslam/sim/simulator.h>
@@ -13,22 +14,13 @@
 #include <optional>
 #include <string>
 
+namespace cli = rasterslam::cli;
+
 namespace
 {
-const char* kUsage =
-    "Usage: rasterslam-sim --scenario FILE.yaml -o OUT.rawlog [options]\n"
-    "Simulates a LiDAR driving through a procedural town and writes an MRPT rawlog\n"
-    "(CObservationPointCloud + CObservationRobotPose ground truth per scan).\n"
-    "\n"
-    "Options:\n"
-    "  --scenario FILE   scenario YAML (keys: rawlogs/README.md)\n"
-    "  -o, --out FILE    output rawlog\n"
-    "  --scans N         override the scenario's scan count\n"
-    "  --seed S          override the scenario's seed\n"
-    "  --lidar NAME      override the LiDAR model: hdl64 | vlp16\n"
-    "  --compress L      gzip level 0..9 (0: plain file; default 1)\n"
-    "  --gt-tum FILE     also write the ground truth as TUM (t x y z qx qy qz qw)\n"
-    "  -h, --help        this text\n";
+const char* kDescription =
+    "rasterslam-sim: simulates a LiDAR driving through a procedural town and writes an MRPT "
+    "rawlog (CObservationPointCloud + CObservationRobotPose ground truth per scan).";
 
 struct Args
 {
@@ -37,62 +29,6 @@ struct Args
 	std::optional<std::string> lidar;
 	int compress = 1;
 };
-
-long long parseInt(const std::string& opt, const std::string& v, long long lo, long long hi)
-{
-	std::size_t used = 0;
-	long long x = 0;
-	try
-	{
-		x = std::stoll(v, &used);
-	}
-	catch (const std::exception&)
-	{
-		used = 0;
-	}
-	if (used != v.size() || v.empty() || x < lo || x > hi)
-		throw std::invalid_argument(opt + ": expected an integer in [" + std::to_string(lo) + ", " +
-		                            std::to_string(hi) + "], got '" + v + "'");
-	return x;
-}
-
-Args parseArgs(int argc, char** argv)
-{
-	Args a;
-	for (int i = 1; i < argc; i++)
-	{
-		const std::string opt = argv[i];
-		if (opt == "-h" || opt == "--help")
-		{
-			std::cout << kUsage;
-			std::exit(0);
-		}
-		if (i + 1 >= argc)
-			throw std::invalid_argument("unknown option or missing value: " + opt);
-		const std::string v = argv[++i];
-		if (opt == "--scenario")
-			a.scenario = v;
-		else if (opt == "-o" || opt == "--out")
-			a.out = v;
-		else if (opt == "--scans")
-			a.scans = parseInt(opt, v, 1, 100000000);
-		else if (opt == "--seed")
-			a.seed = parseInt(opt, v, 0, 0xFFFFFFFFll);
-		else if (opt == "--lidar")
-			a.lidar = v;
-		else if (opt == "--compress")
-			a.compress = static_cast<int>(parseInt(opt, v, 0, 9));
-		else if (opt == "--gt-tum")
-			a.gtTum = v;
-		else
-			throw std::invalid_argument("unknown option: " + opt);
-	}
-	if (a.scenario.empty())
-		throw std::invalid_argument("--scenario is required");
-	if (a.out.empty())
-		throw std::invalid_argument("-o OUT.rawlog is required");
-	return a;
-}
 
 void checkWritable(const std::string& path)
 {
@@ -176,19 +112,35 @@ int run(const Args& args)
 
 int main(int argc, char** argv)
 {
+	Args args;
+	CLI::App app(kDescription, "rasterslam-sim");
+	cli::configure(app);
+	app.add_option("--scenario", args.scenario, "scenario YAML (keys: rawlogs/README.md)")
+	    ->required()
+	    ->check(CLI::ExistingFile.description(""))
+	    ->type_name("FILE");
+	app.add_option("-o,--out", args.out, "output rawlog")->required()->type_name("FILE");
+	app.add_option("--scans", args.scans, "override the scenario's scan count (1 or more)")
+	    ->check(CLI::Range(1LL, 100000000LL).description(""))
+	    ->type_name("N");
+	app.add_option("--seed", args.seed, "override the scenario's seed (0 to 2^32 - 1)")
+	    ->check(CLI::Range(0LL, 0xFFFFFFFFLL).description(""))
+	    ->type_name("S");
+	app.add_option("--lidar", args.lidar, "override the LiDAR model: hdl64 | vlp16")
+	    ->check(CLI::IsMember({"hdl64", "vlp16"}).description(""))
+	    ->type_name("NAME");
+	app.add_option("--compress", args.compress, "gzip level 0..9 (0: plain file; default 1)")
+	    ->check(CLI::Range(0, 9).description(""))
+	    ->type_name("L");
+	app.add_option("--gt-tum", args.gtTum,
+	               "also write the ground truth as TUM (t x y z qx qy qz qw)")
+	    ->type_name("FILE");
+	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
+		return rc;
+
 	// Debian links with --as-needed: without these calls the classes are not registered.
 	mrpt::maps::registerAllClasses_mrpt_maps();
 	mrpt::obs::registerAllClasses_mrpt_obs();
-	Args args;
-	try
-	{
-		args = parseArgs(argc, argv);
-	}
-	catch (const std::exception& e)
-	{
-		std::cerr << "rasterslam-sim: " << e.what() << "\n\n" << kUsage;
-		return 2;
-	}
 	try
 	{
 		return run(args);
@@ -196,6 +148,6 @@ int main(int argc, char** argv)
 	catch (const std::exception& e)
 	{
 		std::cerr << "rasterslam-sim: error: " << e.what() << "\n";
-		return 1;
+		return cli::kExitError;
 	}
 }

@@ -1,13 +1,11 @@
 // rasterslam-vocab: trains a bag-of-binary-words vocabulary on ORB features of elevation
-// images, prints what a vocabulary file holds, and times database queries.
-//   rasterslam-vocab train --images DIR [--images DIR ...] -o vocab.bin [--branching 10]
-//                          [--levels 4] [--seed 1] [--features 2000]
-//   rasterslam-vocab info vocab.bin
-//   rasterslam-vocab bench --vocab vocab.bin [--entries 100,1000,10000] [--seed 1]
+// images, prints what a vocabulary file holds, and times database queries (rasterslam-vocab
+// --help).
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/bow/vocabulary.h>
+#include <rasterslam/cli/app.h>
 #include <rasterslam/features/orb_extractor.h>
 
 #include <algorithm>
@@ -27,97 +25,31 @@ namespace
 namespace fs = std::filesystem;
 namespace bow = rasterslam::bow;
 
-/** Bad command line: exit code 2 (bad input files give 1). */
-struct UsageError : std::runtime_error
-{
-	using std::runtime_error::runtime_error;
-};
+namespace cli = rasterslam::cli;
 
-const char* const kUsage =
-    "usage: rasterslam-vocab train --images DIR [--images DIR ...] -o vocab.bin\n"
-    "                              [--branching 10] [--levels 4] [--seed 1] [--features 2000]\n"
-    "       rasterslam-vocab info vocab.bin\n"
-    "       rasterslam-vocab bench --vocab vocab.bin [--entries 100,1000,10000] [--seed 1]\n";
-
-long toInt(const std::string& opt, const std::string& v, long lo, long hi)
-{
-	std::size_t used = 0;
-	long x = 0;
-	try
-	{
-		x = std::stol(v, &used);
-	}
-	catch (const std::exception&)
-	{
-		used = 0;
-	}
-	if (used != v.size() || v.empty() || x < lo || x > hi)
-		throw UsageError(opt + " needs an integer in [" + std::to_string(lo) + ", " +
-		                 std::to_string(hi) + "], got '" + v + "'");
-	return x;
-}
-
-/** Splits argv after the subcommand into "--key value" pairs (a key may repeat). */
-std::vector<std::pair<std::string, std::string>> parse(int argc, char** argv,
-                                                       const std::vector<std::string>& keys)
-{
-	std::vector<std::pair<std::string, std::string>> out;
-	for (int i = 2; i < argc; ++i)
-	{
-		std::string a = argv[i], v;
-		if (const auto eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos)
-		{
-			v = a.substr(eq + 1);
-			a = a.substr(0, eq);
-		}
-		else if (std::find(keys.begin(), keys.end(), a) != keys.end())
-		{
-			if (i + 1 >= argc)
-				throw UsageError("option " + a + " needs a value");
-			v = argv[++i];
-		}
-		if (std::find(keys.begin(), keys.end(), a) == keys.end())
-			throw UsageError("unknown option '" + std::string(argv[i]) + "'");
-		out.emplace_back(a, v);
-	}
-	return out;
-}
-
-int train(int argc, char** argv)
+struct TrainArgs
 {
 	std::vector<std::string> dirs;
 	std::string output;
-	bow::TrainParams p;
+	bow::TrainParams params;
 	rasterslam::features::OrbParams orb;
-	for (const auto& [k, v] :
-	     parse(argc, argv,
-	           {"--images", "-o", "--output", "--branching", "--levels", "--seed", "--features"}))
-	{
-		if (k == "--images")
-			dirs.push_back(v);
-		else if (k == "-o" || k == "--output")
-			output = v;
-		else if (k == "--branching")
-			p.branching = static_cast<int>(toInt(k, v, 2, 64));
-		else if (k == "--levels")
-			p.levels = static_cast<int>(toInt(k, v, 1, 8));
-		else if (k == "--seed")
-			p.seed = static_cast<uint32_t>(toInt(k, v, 0, 4294967295L));
-		else if (k == "--features")
-			orb.numFeatures = static_cast<int>(toInt(k, v, 1, 100000));
-	}
-	if (dirs.empty() || output.empty())
-		throw UsageError("train needs --images DIR and -o FILE");
+};
 
+struct BenchArgs
+{
+	std::string vocab;
+	std::vector<std::size_t> sizes{100, 1000, 10000};
+	uint32_t seed = 1;
+};
+
+int train(const TrainArgs& args)
+{
+	const auto& p = args.params;
+	const auto& orb = args.orb;
+	const auto& output = args.output;
 	std::vector<fs::path> files;
-	for (const auto& d : dirs)
+	for (const auto& d : args.dirs)
 	{
-		std::error_code ec;
-		if (!fs::is_directory(d, ec))
-		{
-			std::cerr << "rasterslam-vocab: " << d << ": not a folder\n";
-			return 1;
-		}
 		std::vector<fs::path> here;
 		for (const auto& e : fs::directory_iterator(d))
 			if (e.is_regular_file() && e.path().extension() == ".png")
@@ -216,12 +148,10 @@ bool load(const std::string& file, bow::Vocabulary& voc)
 	}
 }
 
-int info(int argc, char** argv)
+int info(const std::string& file)
 {
-	if (argc != 3)
-		throw UsageError("info needs one vocabulary file");
 	bow::Vocabulary voc;
-	if (!load(argv[2], voc))
+	if (!load(file, voc))
 		return 1;
 	std::size_t zero = 0;
 	for (bow::WordId w = 0; w < voc.words(); ++w)
@@ -234,31 +164,9 @@ int info(int argc, char** argv)
 
 /** Query times on synthetic bags: Zipf-like word draws (rank r with weight 1 / r) so that
  *  the inverted lists are as uneven as with real images. */
-int bench(int argc, char** argv)
+int bench(const BenchArgs& args)
 {
-	std::string vocFile;
-	std::vector<std::size_t> sizes{100, 1000, 10000};
-	uint32_t seed = 1;
-	for (const auto& [k, v] : parse(argc, argv, {"--vocab", "--entries", "--seed"}))
-	{
-		if (k == "--vocab")
-			vocFile = v;
-		else if (k == "--seed")
-			seed = static_cast<uint32_t>(toInt(k, v, 0, 4294967295L));
-		else if (k == "--entries")
-		{
-			sizes.clear();
-			std::size_t at = 0;
-			while (at <= v.size())
-			{
-				const auto comma = std::min(v.find(',', at), v.size());
-				sizes.push_back(toInt(k, v.substr(at, comma - at), 1, 1000000));
-				at = comma + 1;
-			}
-		}
-	}
-	if (vocFile.empty())
-		throw UsageError("bench needs --vocab FILE");
+	const std::string& vocFile = args.vocab;
 	bow::Vocabulary voc;
 	if (!load(vocFile, voc))
 		return 1;
@@ -267,7 +175,7 @@ int bench(int argc, char** argv)
 		std::cerr << "rasterslam-vocab: " << vocFile << ": no words\n";
 		return 1;
 	}
-	std::mt19937 rng(seed);
+	std::mt19937 rng(args.seed);
 	std::vector<double> zipf(voc.words());
 	for (std::size_t r = 0; r < zipf.size(); ++r)
 		zipf[r] = 1.0 / static_cast<double>(r + 1);
@@ -289,7 +197,7 @@ int bench(int argc, char** argv)
 		return v;
 	};
 	std::printf("%10s %8s %12s %12s\n", "entries", "words", "median_ms", "p95_ms");
-	for (const std::size_t n : sizes)
+	for (const std::size_t n : args.sizes)
 	{
 		bow::Database db;
 		std::size_t words = 0;
@@ -321,32 +229,91 @@ int bench(int argc, char** argv)
 
 int main(int argc, char** argv)
 {
+	CLI::App app(
+	    "rasterslam-vocab: trains a bag-of-binary-words vocabulary on ORB features of elevation "
+	    "images, prints what a vocabulary file holds, and times database queries.",
+	    "rasterslam-vocab");
+	cli::configure(app);
+	app.footer(
+	    "usage:\n"
+	    "rasterslam-vocab train --images DIR [--images DIR ...] -o vocab.bin [--branching 10] "
+	    "[--levels 4] [--seed 1] [--features 2000]\n"
+	    "rasterslam-vocab info vocab.bin\n"
+	    "rasterslam-vocab bench --vocab vocab.bin [--entries 100,1000,10000] [--seed 1]\n"
+	    "(rasterslam-vocab SUBCOMMAND --help for its options)\n\n" +
+	    std::string(cli::exitCodesFooter()));
+	app.require_subcommand(1);
+
+	TrainArgs t;
+	CLI::App* trainCmd =
+	    cli::subcommand(app, "train", "train a vocabulary on the *.png images of folders");
+	trainCmd
+	    ->add_option("--images", t.dirs,
+	                 "folder of *.png elevation images (repeat for more folders; the images are "
+	                 "taken in name order)")
+	    ->required()
+	    ->check(CLI::ExistingDirectory.description(""))
+	    ->type_name("DIR")
+	    ->expected(1)
+	    ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+	trainCmd->add_option("-o,--output", t.output, "vocabulary file to write")
+	    ->required()
+	    ->type_name("FILE");
+	trainCmd
+	    ->add_option("--branching", t.params.branching, "branches a node, k (2..64; default 10)")
+	    ->check(CLI::Range(2, 64).description(""))
+	    ->type_name("K");
+	trainCmd->add_option("--levels", t.params.levels, "levels of the tree, L (1..8; default 4)")
+	    ->check(CLI::Range(1, 8).description(""))
+	    ->type_name("L");
+	trainCmd
+	    ->add_option(
+	        "--seed", t.params.seed,
+	        "seed of the k-means++ seeding: a seed and the images fix the result (default 1)")
+	    ->type_name("S");
+	trainCmd
+	    ->add_option("--features", t.orb.numFeatures,
+	                 "ORB features an image (1..100000; default 2000)")
+	    ->check(CLI::Range(1, 100000).description(""))
+	    ->type_name("N");
+
+	std::string infoFile;
+	CLI::App* infoCmd = cli::subcommand(app, "info", "print what a vocabulary file holds");
+	infoCmd->add_option("vocab", infoFile, "vocabulary file")
+	    ->required()
+	    ->check(CLI::ExistingFile.description(""))
+	    ->type_name("FILE");
+
+	BenchArgs b;
+	CLI::App* benchCmd = cli::subcommand(
+	    app, "bench", "time database queries on synthetic bags of words (Zipf-like word draws)");
+	benchCmd->add_option("--vocab", b.vocab, "vocabulary file")
+	    ->required()
+	    ->check(CLI::ExistingFile.description(""))
+	    ->type_name("FILE");
+	benchCmd
+	    ->add_option("--entries", b.sizes,
+	                 "database sizes to time, comma-separated (each 1..1000000; default "
+	                 "100,1000,10000)")
+	    ->delimiter(',')
+	    ->check(CLI::Range(std::size_t{1}, std::size_t{1000000}).description(""))
+	    ->type_name("N");
+	benchCmd->add_option("--seed", b.seed, "seed of the synthetic bags (default 1)")
+	    ->type_name("S");
+
+	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
+		return rc;
 	try
 	{
-		if (argc < 2)
-			throw UsageError("missing subcommand");
-		const std::string cmd = argv[1];
-		if (cmd == "-h" || cmd == "--help")
-		{
-			std::cout << kUsage;
-			return 0;
-		}
-		if (cmd == "train")
-			return train(argc, argv);
-		if (cmd == "info")
-			return info(argc, argv);
-		if (cmd == "bench")
-			return bench(argc, argv);
-		throw UsageError("unknown subcommand '" + cmd + "'");
-	}
-	catch (const UsageError& e)
-	{
-		std::cerr << "rasterslam-vocab: " << e.what() << "\n" << kUsage;
-		return 2;
+		if (trainCmd->parsed())
+			return train(t);
+		if (infoCmd->parsed())
+			return info(infoFile);
+		return bench(b);
 	}
 	catch (const std::exception& e)
 	{
 		std::cerr << "rasterslam-vocab: " << e.what() << "\n";
-		return 1;
+		return cli::kExitError;
 	}
 }

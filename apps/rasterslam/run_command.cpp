@@ -9,8 +9,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -24,6 +28,60 @@ namespace rasterslam::cli
 {
 namespace
 {
+// Ctrl-C (SIGINT) and SIGTERM: the first lets the run finish the current scan and write every
+// output for what was processed (and the map); a second ends the process at once.
+std::atomic<int> gStopSignal{0};
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free flag");
+
+extern "C" void onStopSignal(int sig)
+{
+	int none = 0;
+	if (!gStopSignal.compare_exchange_strong(none, sig))
+		::_exit(128 + sig);
+	static const char msg[] =
+	    "\nrasterslam: stopping after this scan and writing the outputs (again to quit at once)\n";
+	const ssize_t n = ::write(2, msg, sizeof msg - 1);
+	(void)n;
+}
+
+void installStopHandlers()
+{
+	struct sigaction sa
+	{
+	};
+	sa.sa_handler = onStopSignal;
+	sigemptyset(&sa.sa_mask);
+	sa.sa_flags = SA_RESTART;  // reads and writes in progress go on
+	::sigaction(SIGINT, &sa, nullptr);
+	::sigaction(SIGTERM, &sa, nullptr);
+}
+
+const char* signalName(int sig)
+{
+	return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal";
+}
+
+/** Temporary outputs (NAME.tmp-PID) that a run killed while writing left in `dir`: removed
+ *  when their process is gone. */
+void removeStaleTemporaries(const fs::path& dir)
+{
+	std::error_code ec;
+	for (const auto& e : fs::directory_iterator(dir, ec))
+	{
+		const auto name = e.path().filename().string();
+		const auto at = name.rfind(".tmp-");
+		if (at == std::string::npos || !e.is_regular_file(ec))
+			continue;
+		const std::string pid = name.substr(at + 5);
+		if (pid.empty() || pid.size() > 9 ||
+		    pid.find_first_not_of("0123456789") != std::string::npos)
+			continue;
+		const auto p = static_cast<pid_t>(std::stol(pid));
+		if (p != ::getpid() && ::kill(p, 0) != 0 && errno == ESRCH)
+			fs::remove(e.path(), ec);
+	}
+}
+
 double percentile(std::vector<double> v, double q)
 {
 	if (v.empty())
@@ -185,6 +243,7 @@ int runCommand(const RunArgs& args)
 	try
 	{
 		io::ensureWritableDir(outDir);
+		removeStaleTemporaries(outDir);
 		if (!mapOut.empty())
 		{
 			// A saved map is the work of earlier sessions: replace it only when it is the one this
@@ -252,6 +311,8 @@ int runCommand(const RunArgs& args)
 		};
 	}
 	std::string runError;
+	installStopHandlers();
+	opts.stop = &gStopSignal;
 	try
 	{
 		res = engine->run(*source, opts);
@@ -366,6 +427,8 @@ int runCommand(const RunArgs& args)
 	}
 	if (!res.stopReason.empty())
 		summary["stopped_early"] = res.stopReason;
+	if (res.stoppedBy != 0)
+		summary["interrupted_by"] = std::string(signalName(res.stoppedBy));
 	const bool unlocated = opts.relocalizeFirstScan && !res.localized;
 	if (opts.relocalizeFirstScan)
 	{
@@ -435,6 +498,16 @@ int runCommand(const RunArgs& args)
 	{
 		std::cerr << "rasterslam: error: " << runError << "\n";
 		return kExitError;
+	}
+	if (res.stoppedBy != 0)
+	{
+		// The shell's convention for a process ended by a signal: 128 + its number.
+		std::fprintf(stderr, "rasterslam: interrupted by %s after %zu scans%s\n",
+		             signalName(res.stoppedBy), res.scans.size(),
+		             wrote ? (mapOut.empty() ? "; outputs written for them"
+		                                     : "; outputs and the map written for them")
+		                   : "; nothing to write");
+		return 128 + res.stoppedBy;
 	}
 	if (res.scans.empty())
 	{

@@ -352,8 +352,13 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	s.res.graph.root = s.nextNode;
 	try
 	{
-		while (std::optional<Scan> scan = readScan(s))
+		for (;;)
 		{
+			if (s.opts.stop && (s.res.stoppedBy = s.opts.stop->load()) != 0)
+				break;
+			std::optional<Scan> scan = readScan(s);
+			if (!scan)
+				break;
 			addInputOdometry(s, *scan);
 			if (!admitScan(s, *scan))
 			{
@@ -497,7 +502,12 @@ void Engine::pace(RunState& s, const Scan& scan, ScanRecord& rec)
 	const auto due =
 	    s.wall0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(due_s));
 	if (Clock::now() < due)
-		std::this_thread::sleep_until(due);
+	{
+		// In steps, so that a stop request (Ctrl-C) is not held up by a long gap in the stamps.
+		while (Clock::now() < due && !(s.opts.stop && s.opts.stop->load() != 0))
+			std::this_thread::sleep_until(
+			    std::min(due, Clock::now() + std::chrono::milliseconds(100)));
+	}
 	else if (std::chrono::duration<double>(Clock::now() - due).count() > 1e-3)
 	{
 		rec.late = true;

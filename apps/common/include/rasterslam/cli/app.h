@@ -125,7 +125,19 @@ CLI::Option* addIndex(CLI::App& app, const std::string& name, T& value,
 		    return ok ? std::string() : "expects a whole number >= 0, got '" + v + "'";
 	    },
 	    "");
-	return app.add_option(name, value, description)->check(wholeNumber)->type_name("N");
+	// CLI11 2.1 converts with base 0, which reads 010 as octal: leading zeros go first.
+	const CLI::Validator decimal(
+	    [](std::string& v) -> std::string
+	    {
+		    const auto nz = v.find_first_not_of('0');
+		    v = nz == std::string::npos ? std::string("0") : v.substr(nz);
+		    return std::string();
+	    },
+	    "");
+	return app.add_option(name, value, description)
+	    ->check(wholeNumber)
+	    ->transform(decimal)
+	    ->type_name("N");
 }
 
 /** A subcommand with the same look (its own --help and the exit codes; the parent's
@@ -210,6 +222,22 @@ inline int parse(CLI::App& app, int argc, char** argv)
 	catch (const CLI::CallForVersion& e)
 	{
 		return app.exit(e);
+	}
+	catch (const CLI::ValidationError& e)
+	{
+		// A named input that is not there is bad input (exit 1), as when a program finds it
+		// missing itself; other invalid values are usage errors.
+		const std::string cmd = commandPath(app), what = e.what();
+		const bool missing = what.find("File does not exist: ") != std::string::npos ||
+		                     what.find("Directory does not exist: ") != std::string::npos ||
+		                     what.find("Path does not exist: ") != std::string::npos;
+		if (missing)
+		{
+			std::cerr << cmd << ": error: " << what << "\n";
+			return kExitError;
+		}
+		std::cerr << cmd << ": " << what << "\n(see " << cmd << " --help)\n";
+		return kExitUsage;
 	}
 	catch (const CLI::ParseError& e)
 	{

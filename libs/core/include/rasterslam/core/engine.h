@@ -6,6 +6,7 @@
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/scan_source.h>
 
+#include <atomic>
 #include <chrono>
 #include <functional>
 #include <optional>
@@ -55,6 +56,10 @@ struct RunOptions
 	std::function<void(const ScanRecord&, double progress)> onScan;
 	/** Called with every rasterized image (e.g. to save it), when a rasterizer is set. */
 	std::function<void(const Scan&, const RasterFrame&)> onRaster;
+	/** When set and non-zero (e.g. a signal handler stored the signal's number), the run
+	 *  stops before the next scan and finishes as after the last one: the back end, the final
+	 *  optimization and every pose for the scans processed. */
+	const std::atomic<int>* stop = nullptr;
 };
 
 struct RunResult
@@ -91,6 +96,8 @@ struct RunResult
 	std::vector<LoopDecision> loopDecisions;
 	/** Empty if the input ended normally; else where and why it stopped early. */
 	std::string stopReason;
+	/** The value RunOptions::stop held when it stopped the run; 0 when it did not. */
+	int stoppedBy = 0;
 	/** Non-empty when the run stopped on bad input (outputs are still valid up to there). */
 	std::string error;
 	double wall_s = 0;

@@ -1,0 +1,271 @@
+// The command lines of the smaller programs (kitti2rawlog, rasterslam-sim, rasterslam-vocab,
+// rasterslam-map-export, rasterslam-bench-map-store) follow the project's conventions
+// (apps/common/include/rasterslam/cli/app.h): --help and --version exit 0; usage errors print
+// "PROG: what" and "(see PROG --help)" on stderr and exit 2; bad input found while running
+// exits 1 with a message naming the file.
+#include <fstream>
+#include <iterator>
+#include <regex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using namespace rasterslam;
+
+namespace
+{
+/** Runs `bin/prog args`; only its standard output is captured. */
+test::CommandResult stdoutOf(const std::string& prog, const std::string& args)
+{
+	return test::runCommand("(" + test::bin(prog) + " " + args + " 2>/dev/null)");
+}
+
+/** Runs `bin/prog args`; only its standard error is captured. */
+test::CommandResult stderrOf(const std::string& prog, const std::string& args)
+{
+	return test::runCommand("(" + test::bin(prog) + " " + args + " 2>&1 >/dev/null)");
+}
+
+bool contains(const std::string& text, const std::string& what)
+{
+	return text.find(what) != std::string::npos;
+}
+
+/** A usage error of `command` ("rasterslam-vocab train"): exit 2, "command: <what>" and
+ *  "(see command --help)" on stderr, `what` holding `mentions`. */
+void expectUsageError(const test::CommandResult& r, const std::string& command,
+                      const std::string& mentions)
+{
+	EXPECT_EQ(r.exitCode, 2) << r.output;
+	EXPECT_EQ(r.output.rfind(command + ": ", 0), 0u) << r.output;
+	EXPECT_TRUE(contains(r.output, "(see " + command + " --help)")) << r.output;
+	EXPECT_TRUE(contains(r.output, mentions)) << "expected '" << mentions << "' in: " << r.output;
+}
+
+struct Program
+{
+	std::string name;
+	std::vector<std::string> options;  //!< some of the options --help must list
+};
+
+const std::vector<Program> kPrograms = {
+    {"kitti2rawlog",
+     {"--velodyne", "--sequence", "--out", "--poses", "--calib", "--times", "--first", "--last",
+      "--external", "--compress", "--vertical-correction-deg"}},
+    {"rasterslam-sim",
+     {"--scenario", "--out", "--scans", "--seed", "--lidar", "--compress", "--gt-tum"}},
+    {"rasterslam-vocab", {"train", "info", "bench"}},
+    {"rasterslam-map-export", {"DIR", "--out"}},
+    {"rasterslam-bench-map-store", {"--local-maps", "--points"}},
+};
+}  // namespace
+
+TEST(Cli, HelpExitsZeroAndListsTheOptions)
+{
+	for (const auto& p : kPrograms)
+	{
+		for (const std::string flag : {"--help", "-h"})
+		{
+			const auto r = stdoutOf(p.name, flag);
+			EXPECT_EQ(r.exitCode, 0) << p.name << " " << flag << ": " << r.output;
+			EXPECT_TRUE(contains(r.output, "Usage: " + p.name)) << p.name << ": " << r.output;
+			for (const auto& o : p.options)
+				EXPECT_TRUE(contains(r.output, o)) << p.name << " --help lacks " << o;
+			EXPECT_TRUE(contains(r.output, "Exit codes")) << p.name << ": " << r.output;
+		}
+	}
+}
+
+TEST(Cli, HelpKeepsTheExplanationsBeyondTheOptions)
+{
+	EXPECT_TRUE(contains(stdoutOf("kitti2rawlog", "--help").output, "GROUND_TRUTH"));
+	EXPECT_TRUE(
+	    contains(stdoutOf("rasterslam-vocab", "--help").output, "rasterslam-vocab info vocab.bin"));
+	EXPECT_TRUE(contains(stdoutOf("rasterslam-map-export", "--help").output, "points.pcd"));
+}
+
+TEST(Cli, SubcommandHelpListsItsOptions)
+{
+	const std::vector<std::pair<std::string, std::vector<std::string>>> subs = {
+	    {"train", {"--images", "--output", "--branching", "--levels", "--seed", "--features"}},
+	    {"info", {"vocab"}},
+	    {"bench", {"--vocab", "--entries", "--seed"}}};
+	for (const auto& [sub, options] : subs)
+	{
+		const auto r = stdoutOf("rasterslam-vocab", sub + " --help");
+		EXPECT_EQ(r.exitCode, 0) << sub << ": " << r.output;
+		EXPECT_TRUE(contains(r.output, "Usage: rasterslam-vocab " + sub)) << r.output;
+		for (const auto& o : options)
+			EXPECT_TRUE(contains(r.output, o))
+			    << "rasterslam-vocab " << sub << " --help lacks " << o;
+	}
+}
+
+TEST(Cli, VersionExitsZeroAndNamesTheProgram)
+{
+	for (const auto& p : kPrograms)
+	{
+		const auto r = stdoutOf(p.name, "--version");
+		EXPECT_EQ(r.exitCode, 0) << p.name << ": " << r.output;
+		EXPECT_TRUE(std::regex_search(r.output, std::regex("^" + p.name + " [0-9]+\\.[0-9]+")))
+		    << p.name << ": " << r.output;
+	}
+}
+
+TEST(Cli, UnknownOptionIsAUsageError)
+{
+	// The required options are given, so that the unknown one is what is wrong.
+	const test::ScopedTempDir dir("cli");
+	const auto d = dir.path().string();
+	std::ofstream(dir / "scenario.yaml") << "scans: 1\n";
+	const std::vector<std::pair<std::string, std::string>> cases = {
+	    {"kitti2rawlog", "--velodyne " + d + " -o " + d + "/x.rawlog"},
+	    {"rasterslam-sim", "--scenario " + d + "/scenario.yaml -o " + d + "/x.rawlog"},
+	    {"rasterslam-map-export", d + " --out " + d + "/exp"},
+	    {"rasterslam-bench-map-store", "--local-maps 1 --points 1"},
+	};
+	for (const auto& [prog, args] : cases)
+		expectUsageError(stderrOf(prog, args + " --no-such-option"), prog, "--no-such-option");
+	expectUsageError(
+	    stderrOf("rasterslam-vocab", "bench --vocab " + d + "/scenario.yaml --no-such-option"),
+	    "rasterslam-vocab bench", "--no-such-option");
+	// A word where the subcommand goes that is none.
+	expectUsageError(stderrOf("rasterslam-vocab", "no-such-command"), "rasterslam-vocab",
+	                 "no-such-command");
+	EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+}
+
+TEST(Cli, MissingRequiredOptionIsNamed)
+{
+	const test::ScopedTempDir dir("cli");
+	const auto d = dir.path().string();
+	std::ofstream(dir / "scenario.yaml") << "scans: 1\n";
+	expectUsageError(stderrOf("kitti2rawlog", "--velodyne " + d), "kitti2rawlog", "--out");
+	expectUsageError(stderrOf("kitti2rawlog", "-o " + d + "/x.rawlog"), "kitti2rawlog",
+	                 "--velodyne");
+	expectUsageError(
+	    stderrOf("kitti2rawlog", "-o " + d + "/x.rawlog --velodyne " + d + " --sequence " + d),
+	    "kitti2rawlog", "--sequence");
+	expectUsageError(stderrOf("rasterslam-sim", "-o " + d + "/x.rawlog"), "rasterslam-sim",
+	                 "--scenario");
+	expectUsageError(stderrOf("rasterslam-sim", "--scenario " + d + "/scenario.yaml"),
+	                 "rasterslam-sim", "--out");
+	expectUsageError(stderrOf("rasterslam-vocab", ""), "rasterslam-vocab", "subcommand");
+	expectUsageError(stderrOf("rasterslam-vocab", "train -o " + d + "/v.bin"),
+	                 "rasterslam-vocab train", "--images");
+	expectUsageError(stderrOf("rasterslam-vocab", "train --images " + d), "rasterslam-vocab train",
+	                 "--output");
+	expectUsageError(stderrOf("rasterslam-vocab", "info"), "rasterslam-vocab info", "vocab");
+	expectUsageError(stderrOf("rasterslam-vocab", "bench"), "rasterslam-vocab bench", "--vocab");
+	expectUsageError(stderrOf("rasterslam-map-export", "--out " + d + "/exp"),
+	                 "rasterslam-map-export", "DIR");
+	expectUsageError(stderrOf("rasterslam-map-export", d), "rasterslam-map-export", "--out");
+	EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+}
+
+TEST(Cli, BadValuesAreUsageErrors)
+{
+	const test::ScopedTempDir dir("cli");
+	const auto d = dir.path().string();
+	std::ofstream(dir / "scenario.yaml") << "scans: 1\n";
+	std::ofstream(dir / "poses.txt") << "1 0 0 0 0 1 0 0 0 0 1 0\n";
+	const auto kitti = "--velodyne " + d + " -o " + d + "/x.rawlog ";
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--compress 10"), "kitti2rawlog",
+	                 "--compress");
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--first -1"), "kitti2rawlog", "--first");
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--last x"), "kitti2rawlog", "--last");
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--vertical-correction-deg 6"),
+	                 "kitti2rawlog", "--vertical-correction-deg");
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--vertical-correction-deg nan"),
+	                 "kitti2rawlog", "--vertical-correction-deg");
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--external --vertical-correction-deg 0.2"),
+	                 "kitti2rawlog", "--external");
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--poses " + d + "/poses.txt"),
+	                 "kitti2rawlog", "--poses needs --calib");
+
+	const auto sim = "--scenario " + d + "/scenario.yaml -o " + d + "/x.rawlog ";
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--lidar hdl32"), "rasterslam-sim", "vlp16");
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--scans 0"), "rasterslam-sim", "--scans");
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--seed 4294967296"), "rasterslam-sim",
+	                 "--seed");
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--compress x"), "rasterslam-sim",
+	                 "--compress");
+
+	const auto train = "train --images " + d + " -o " + d + "/v.bin ";
+	expectUsageError(stderrOf("rasterslam-vocab", train + "--branching 1"),
+	                 "rasterslam-vocab train", "--branching");
+	expectUsageError(stderrOf("rasterslam-vocab", train + "--levels 9"), "rasterslam-vocab train",
+	                 "--levels");
+	expectUsageError(stderrOf("rasterslam-vocab", train + "--seed -1"), "rasterslam-vocab train",
+	                 "--seed");
+	expectUsageError(stderrOf("rasterslam-vocab", train + "--features 0"), "rasterslam-vocab train",
+	                 "--features");
+	expectUsageError(
+	    stderrOf("rasterslam-vocab", "bench --vocab " + d + "/scenario.yaml " + "--entries 100,0"),
+	    "rasterslam-vocab bench", "--entries");
+	expectUsageError(stderrOf("rasterslam-vocab", "info " + d + "/scenario.yaml b"),
+	                 "rasterslam-vocab info", "b");
+
+	expectUsageError(stderrOf("rasterslam-bench-map-store", "--local-maps 0"),
+	                 "rasterslam-bench-map-store", "--local-maps");
+	expectUsageError(stderrOf("rasterslam-bench-map-store", "--points -5"),
+	                 "rasterslam-bench-map-store", "--points");
+	// Nothing was written.
+	EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 2);
+}
+
+TEST(Cli, BadInputFoundWhileRunningExitsOneNamingTheFile)
+{
+	const test::ScopedTempDir dir("cli");
+	const auto d = dir.path().string();
+	fs::create_directories(dir / "empty");
+	std::ofstream(dir / "bad.yaml") << "scans: [1, 2\n";
+	std::ofstream(dir / "text.bin") << "not a vocabulary\n";
+
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + d + "/empty -o " + d +
+	                          "/x.rawlog");
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, d + "/empty")) << r.output;
+
+	r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " + d + "/bad.yaml -o " + d +
+	                     "/x.rawlog");
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, "bad.yaml")) << r.output;
+
+	r = test::runCommand(test::bin("rasterslam-vocab") + " info " + d + "/text.bin");
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, "text.bin")) << r.output;
+
+	r = test::runCommand(test::bin("rasterslam-vocab") + " train --images " + d + "/empty -o " + d +
+	                     "/v.bin");
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, d + "/empty: no *.png images")) << r.output;
+
+	// A named input that is not there: exit 1, named (CLI11's existence checks).
+	for (const auto& [prog, args, named] :
+	     std::vector<std::tuple<std::string, std::string, std::string>>{
+	         {"kitti2rawlog",
+	          "--velodyne " + d + " -o " + d + "/x.rawlog --times " + d + "/nothere.txt",
+	          d + "/nothere.txt"},
+	         {"kitti2rawlog", "--velodyne " + d + "/nothere -o " + d + "/x.rawlog", d + "/nothere"},
+	         {"rasterslam-sim", "--scenario " + d + "/nothere.yaml -o " + d + "/x.rawlog",
+	          d + "/nothere.yaml"},
+	         {"rasterslam-vocab", "info " + d + "/nothere.bin", d + "/nothere.bin"}})
+	{
+		r = test::runCommand(test::bin(prog) + " " + args);
+		EXPECT_EQ(r.exitCode, 1) << args << "\n" << r.output;
+		EXPECT_TRUE(contains(r.output, "error: ")) << r.output;
+		EXPECT_TRUE(contains(r.output, "does not exist: " + named)) << r.output;
+	}
+
+	r = test::runCommand(test::bin("rasterslam-map-export") + " " + d + "/empty --out " + d +
+	                     "/exp");
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, d + "/empty/map.rsmap' does not exist")) << r.output;
+
+	for (const auto* left : {"x.rawlog", "v.bin", "v.bin.tmp", "exp"})
+		EXPECT_FALSE(fs::exists(dir / left)) << left;
+}
