@@ -225,6 +225,64 @@ TEST(EndToEnd, BadScansStopTheRunButKeepWhatWasDone)
 	}
 }
 
+TEST(EndToEnd, DamagedPointCountIsAnErrorAtItsOffsetNotAMachineOutOfMemory)
+{
+	const test::ScopedTempDir dir("e2e-count");
+	// Scans of 3000 + k points, plain (not gzip) so that the bytes can be damaged.
+	const auto path = (dir / "plain.rawlog").string();
+	{
+		io::RawlogWriter w(path, 0);
+		std::mt19937 rng(5);
+		std::uniform_real_distribution<float> u(-20, 20);
+		for (int k = 0; k < 4; k++)
+		{
+			Scan s;
+			s.stamp = 10 + 0.1 * k;
+			for (int i = 0; i < 3000 + k; i++)
+				s.points.push_back({u(rng), u(rng), u(rng) * 0.1f, 0});
+			w.writeScan(s);
+		}
+		w.close();
+	}
+	// Scan 2's point count (3002, a little-endian uint32) becomes 2^31 - 16: 8.6 GB a
+	// coordinate.
+	std::string bytes;
+	{
+		std::ifstream f(path, std::ios::binary);
+		bytes.assign(std::istreambuf_iterator<char>(f), {});
+	}
+	const std::string count("\xBA\x0B\x00\x00", 4), huge("\xF0\xFF\xFF\x7F", 4);
+	const auto at = bytes.find(count);
+	ASSERT_NE(at, std::string::npos);
+	ASSERT_EQ(bytes.find(count, at + 1), std::string::npos) << "the count must be unambiguous";
+	bytes.replace(at, 4, huge);
+	const auto bad = (dir / "bad.rawlog").string();
+	std::ofstream(bad, std::ios::binary) << bytes;
+
+	// The allocation fails under the memory cap (1.5 GB here): exit 1 naming the file and the
+	// object's offset; the scans before it are written.
+	const auto r = test::runCommand("RASTERSLAM_MAX_MEMORY_MB=1500 " + test::bin("rasterslam") +
+	                                " run --config tracking --rawlog " + bad + " --out " +
+	                                (dir / "o").string());
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_NE(r.output.find(bad + ": corrupt object at uncompressed byte "), std::string::npos)
+	    << r.output;
+	EXPECT_NE(r.output.find("more memory than this process may use"), std::string::npos)
+	    << r.output;
+	EXPECT_EQ(lineCount(dir / "o" / "trajectory.kitti"), 2u);
+	// The offset names the object that holds the count, before the count itself.
+	const auto pos = r.output.find("uncompressed byte ");
+	ASSERT_NE(pos, std::string::npos);
+	const auto offset = std::stoull(r.output.substr(pos + 18));
+	EXPECT_LT(offset, at);
+	EXPECT_GT(offset, bytes.size() / 4);
+	// A cap that is not a number is a usage error.
+	const auto u = test::runCommand("RASTERSLAM_MAX_MEMORY_MB=lots " + test::bin("rasterslam") +
+	                                " run --rawlog " + bad + " --out " + (dir / "o").string());
+	EXPECT_EQ(u.exitCode, 2) << u.output;
+	EXPECT_NE(u.output.find("RASTERSLAM_MAX_MEMORY_MB='lots'"), std::string::npos) << u.output;
+}
+
 TEST(EndToEnd, BadConfigsAndOutputFolders)
 {
 	const auto dir = test::tempDir("e2e");

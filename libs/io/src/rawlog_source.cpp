@@ -20,6 +20,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <new>
 #include <optional>
 #include <stdexcept>
 
@@ -344,6 +345,15 @@ bool RawlogSource::readOne()
 	auto arch = mrpt::serialization::archiveFrom(*impl_->counting);
 	const uint64_t before = impl_->counting->count();
 	mrpt::serialization::CSerializable::Ptr obj;
+	// A damaged count or size: the allocation it asked for failed (the programs cap their
+	// memory, see capMemory() in apps/common; MRPT may wrap the std::bad_alloc).
+	const auto tooBig = [&]
+	{
+		return path_ + ": corrupt object at uncompressed byte " + std::to_string(before) +
+		       " (after " + std::to_string(scans_) +
+		       " scans): it asks for more memory than this process may use (a damaged count or "
+		       "size; RASTERSLAM_MAX_MEMORY_MB sets the cap)";
+	};
 	try
 	{
 		obj = arch.ReadObject();
@@ -358,9 +368,19 @@ bool RawlogSource::readOne()
 		    std::to_string(before) + " (after " + std::to_string(scans_) + " scans)";
 		return false;
 	}
+	catch (const std::bad_alloc&)
+	{
+		stopReason_ = tooBig();
+		return false;
+	}
 	catch (const std::exception& e)
 	{
 		// MRPT nests exceptions ("Original exception: ..."); the innermost message says most.
+		if (std::string(e.what()).find("std::bad_alloc") != std::string::npos)
+		{
+			stopReason_ = tooBig();
+			return false;
+		}
 		const std::string full = e.what();
 		std::string what = full;
 		for (auto pos = full.find("Message:"); pos != std::string::npos;

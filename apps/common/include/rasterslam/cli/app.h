@@ -5,8 +5,14 @@
 //    exits 2; bad input or a failure while running exits 1.
 #pragma once
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -169,6 +175,43 @@ inline std::string commandPath(const CLI::App& app)
 	return path;
 }
 
+/** Caps the process's data memory (heap and private writable mappings: RLIMIT_DATA), so that
+ *  a damaged count or size in an input file makes its allocation fail (std::bad_alloc, which
+ *  the readers report naming the file and the offset) instead of taking the machine's memory.
+ *  The cap is a quarter of the physical memory (at least 2 GB), or $RASTERSLAM_MAX_MEMORY_MB
+ *  (0: none); apps/common/mrpt_aligned_malloc.cpp makes MRPT's allocations honour it with a
+ *  std::bad_alloc too. Returns it in
+ *  MB (0: none set). A malformed variable is a usage error. */
+inline double capMemory(const std::string& program)
+{
+	const double physicalMb = static_cast<double>(::sysconf(_SC_PHYS_PAGES)) *
+	                          static_cast<double>(::sysconf(_SC_PAGE_SIZE)) / (1024.0 * 1024.0);
+	double mb = std::max(2048.0, physicalMb / 4);
+	if (const char* env = std::getenv("RASTERSLAM_MAX_MEMORY_MB"))
+	{
+		char* end = nullptr;
+		mb = std::strtod(env, &end);
+		if (end == env || *end != '\0' || !(mb >= 0) || mb > 1e9)
+		{
+			std::cerr << program << ": RASTERSLAM_MAX_MEMORY_MB='" << env
+			          << "': expected megabytes >= 0 (0: no cap)\n";
+			std::exit(kExitUsage);
+		}
+	}
+	if (!(mb > 0))
+		return 0;
+	rlimit lim{};
+	if (::getrlimit(RLIMIT_DATA, &lim) != 0)
+		return 0;
+	const auto bytes = static_cast<rlim_t>(mb * 1024.0 * 1024.0);
+	if (lim.rlim_max != RLIM_INFINITY && bytes > lim.rlim_max)
+		return static_cast<double>(lim.rlim_cur) / (1024.0 * 1024.0);  // a lower cap is set
+	lim.rlim_cur = bytes;
+	if (::setrlimit(RLIMIT_DATA, &lim) != 0)
+		return 0;
+	return mb;
+}
+
 /** Prints a usage error in the project's form and exits 2. */
 [[noreturn]] inline void usageError(const std::string& command, const std::string& message)
 {
@@ -176,8 +219,9 @@ inline std::string commandPath(const CLI::App& app)
 	std::exit(kExitUsage);
 }
 
-/** Parses the command line. Returns -1 when the program should go on; otherwise the exit code
- *  to return at once: 0 after --help or --version, 2 after a usage error (message printed). */
+/** Parses the command line. Returns -1 when the program should go on (its memory then capped,
+ *  see capMemory()); otherwise the exit code to return at once: 0 after --help or --version, 2
+ *  after a usage error (message printed). */
 inline int parse(CLI::App& app, int argc, char** argv)
 {
 	// A word where a subcommand is expected must be one: CLI11 would only say that a
@@ -209,6 +253,7 @@ inline int parse(CLI::App& app, int argc, char** argv)
 	try
 	{
 		app.parse(argc, argv);
+		capMemory(app.get_name());
 		return -1;
 	}
 	catch (const CLI::CallForHelp& e)
