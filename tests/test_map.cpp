@@ -1,6 +1,7 @@
 // The map model (libs/map): every class through MRPT serialization with its version check,
 // and the map file: a round trip with poses from a PoseView, damage and old versions refused
 // with the file named.
+#include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/io/CMemoryStream.h>
 #include <mrpt/serialization/CArchive.h>
@@ -11,6 +12,7 @@
 
 #include <chrono>
 #include <csignal>
+#include <cstring>
 #include <fstream>
 #include <random>
 #include <set>
@@ -347,6 +349,79 @@ TEST(MapModel, DamagedAndOldMapsAreRefused)
 	fs::remove(file);
 	fs::create_directories(file);
 	expectError("is not a file");
+}
+
+TEST(MapModel, DamagedIndexIsRefusedByItsChecksumLengthOrEnd)
+{
+	const test::ScopedTempDir dir("map-crc");
+	std::mt19937 rng(4);
+	Map m;
+	m.sessions = 3;  // makeLocalMap's local maps are of session 2
+	for (uint64_t k = 0; k < 5; k++)
+	{
+		auto kf = std::make_shared<Keyframe>();
+		kf->id = k;
+		m.keyframes[k] = kf;
+		m.priorPoses[k] = mrpt::poses::CPose3D(static_cast<double>(k), 0, 0, 0, 0, 0);
+	}
+	m.localMaps[0] = makeLocalMap(0, {0, 1, 2, 3, 4}, rng);
+	PoseView v;
+	v.prior = &m.priorPoses;
+	const auto d = dir.path().string();
+	saveMap(m, v, d);
+	ASSERT_NO_THROW(loadMap(d));
+	const auto file = mapFilePath(d);
+	// The index uncompressed: magic (4), version (1), body length (8), CRC-32 (4), body.
+	std::vector<uint8_t> raw;
+	{
+		mrpt::io::CFileGZInputStream f(file);
+		uint8_t buf[4096];
+		for (std::size_t n; (n = f.Read(buf, sizeof buf)) > 0;)
+			raw.insert(raw.end(), buf, buf + n);
+	}
+	ASSERT_GT(raw.size(), 17u);
+	EXPECT_EQ(raw[4], 4) << "index version";
+	uint64_t bodyLength = 0;
+	std::memcpy(&bodyLength, raw.data() + 5, 8);
+	EXPECT_EQ(bodyLength, raw.size() - 17);
+	auto write = [&](const std::vector<uint8_t>& bytes)
+	{
+		mrpt::io::CFileGZOutputStream f(file);
+		f.Write(bytes.data(), bytes.size());
+	};
+	auto errorOf = [&]() -> std::string
+	{
+		try
+		{
+			loadMap(d);
+		}
+		catch (const std::runtime_error& e)
+		{
+			return e.what();
+		}
+		return "";
+	};
+	// One bit flipped anywhere in the body (seeded positions): refused, the file named.
+	std::uniform_int_distribution<std::size_t> pos(17, raw.size() - 1);
+	for (int i = 0; i < 20; i++)
+	{
+		auto bad = raw;
+		bad[pos(rng)] ^= static_cast<uint8_t>(1u << (i % 8));
+		write(bad);
+		const auto msg = errorOf();
+		EXPECT_NE(msg.find("cannot read map '" + file + "': checksum mismatch"), std::string::npos)
+		    << msg;
+	}
+	// Cut short, a huge length, and bytes past the end.
+	write(std::vector<uint8_t>(raw.begin(), raw.end() - 10));
+	EXPECT_NE(errorOf().find("truncated"), std::string::npos) << errorOf();
+	auto huge = raw;
+	const uint64_t big = uint64_t(1) << 40;
+	std::memcpy(huge.data() + 5, &big, 8);
+	write(huge);
+	EXPECT_NE(errorOf().find("damaged header"), std::string::npos) << errorOf();
+	write(raw);
+	EXPECT_EQ(errorOf(), "");
 }
 
 TEST(MapModel, OfflineStoreRoundTripChecksumAndOnDemandLoading)

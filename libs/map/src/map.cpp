@@ -1,13 +1,16 @@
 #include <fcntl.h>
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/io/CMemoryStream.h>
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/stl_serialization.h>
+#include <mrpt/system/crc.h>
 #include <rasterslam/map/map.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -25,8 +28,13 @@ constexpr uint32_t kMapMagic = 0x504d5352;  // "RSMP"
 // Version 0 (the loop detector's own file, before the map model) is not read: its keyframe
 // grouping cannot be turned into local maps with points.
 // Version 1 has no session records; versions 1 and 2 hold every local map whole in the one
-// file; version 3 is an index, the local maps being files of the map's store.
-constexpr uint8_t kMapVersion = 3;
+// file; version 3 is an index, the local maps being files of the map's store; version 4 is
+// version 3 with the body's length and CRC-32 ahead of it.
+constexpr uint8_t kMapVersion = 4;
+constexpr uint64_t kMaxIndexBytes = uint64_t(4) << 30;
+/** The index after its magic and version (and, from version 4, its length and checksum). */
+void readIndexBody(mrpt::serialization::CArchive& a, uint8_t version, const std::string& dir,
+                   Map& map);
 }  // namespace
 
 std::optional<mrpt::poses::CPose3D> PoseView::operator()(uint64_t keyframe) const
@@ -246,11 +254,10 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 	const auto tmp = path + ".tmp-" + std::to_string(::getpid());
 	try
 	{
-		mrpt::io::CFileGZOutputStream f;
-		if (!f.open(tmp, 1))
-			throw std::runtime_error("cannot write map '" + path + "'");
-		auto a = mrpt::serialization::archiveFrom(f);
-		a << kMapMagic << kMapVersion << map.sessions;
+		// The body in memory first: the file carries its length and CRC-32 ahead of it.
+		mrpt::io::CMemoryStream body;
+		auto a = mrpt::serialization::archiveFrom(body);
+		a << map.sessions;
 		a << static_cast<uint32_t>(map.sessionRecords.size());
 		for (const auto& [id, r] : map.sessionRecords)
 			a << r.id << r.firstStamp << r.startedAt << r.sensor << r.input;
@@ -281,6 +288,17 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 			a << labels << e.file << e.points << e.bytes;
 		}
 		a << map.graph << map.placeIndexClass << map.placeIndex;
+		const auto* bytes = static_cast<const uint8_t*>(body.getRawBufferData());
+		const uint64_t n = body.getTotalBytesCount();
+		const uint32_t crc = mrpt::system::compute_CRC32(bytes, n);
+		mrpt::io::CFileGZOutputStream f;
+		if (!f.open(tmp, 1))
+			throw std::runtime_error("cannot write map '" + path + "'");
+		auto header = mrpt::serialization::archiveFrom(f);
+		header << kMapMagic << kMapVersion << n << crc;
+		if (f.Write(bytes, n) != n)
+			throw std::runtime_error("cannot write map '" + path + "' (disk full?)");
+		f.close();
 	}
 	catch (...)
 	{
@@ -334,6 +352,62 @@ Map loadMap(const std::string& dir)
 			    "map version 0 (written before the map manager): build the map again");
 		if (version > kMapVersion)
 			throw std::runtime_error("unknown map version " + std::to_string(version));
+		if (version < 4)
+			readIndexBody(a, version, dir, map);
+		else
+		{
+			// Length and CRC-32 of the body, checked before any of it is parsed.
+			uint64_t n = 0;
+			uint32_t crc = 0;
+			a >> n >> crc;
+			if (n > kMaxIndexBytes)
+				throw std::runtime_error("damaged header: a body of " + std::to_string(n) +
+				                         " bytes");
+			std::vector<uint8_t> bytes;
+			// In steps: a damaged length runs into the end of the file, not into memory.
+			constexpr uint64_t kStep = uint64_t(64) << 20;
+			while (bytes.size() < n)
+			{
+				const auto want = std::min<uint64_t>(kStep, n - bytes.size());
+				const auto had = bytes.size();
+				bytes.resize(had + want);
+				if (f.Read(bytes.data() + had, want) != want)
+					throw std::runtime_error("truncated: the body is " + std::to_string(n) +
+					                         " bytes, the file ends after " + std::to_string(had) +
+					                         " of them");
+			}
+			if (mrpt::system::compute_CRC32(bytes) != crc)
+				throw std::runtime_error("checksum mismatch (the file is damaged)");
+			mrpt::io::CMemoryStream body;
+			body.assignMemoryNotOwn(bytes.data(), bytes.size());
+			auto b = mrpt::serialization::archiveFrom(body);
+			readIndexBody(b, version, dir, map);
+			if (body.getPosition() != n)
+				throw std::runtime_error("the body has " + std::to_string(n - body.getPosition()) +
+				                         " bytes past its end");
+		}
+	}
+	catch (const std::exception& e)
+	{
+		std::string what = e.what();
+		if (const auto pos = what.find("Message:"); pos != std::string::npos)
+			what = what.substr(pos + 9, what.find('\n', pos) - pos - 9);
+		if (const auto pos = what.find("Call stack"); pos != std::string::npos)
+			what.resize(pos);
+		while (!what.empty() && (what.back() == '\n' || what.back() == ' '))
+			what.pop_back();
+		throw std::runtime_error("cannot read map '" + path + "': " + what);
+	}
+	return map;
+}
+
+namespace
+{
+void readIndexBody(mrpt::serialization::CArchive& a, uint8_t version, const std::string& dir,
+                   Map& map)
+{
+	std::error_code ec;
+	{
 		a >> map.sessions;
 		if (version >= 2)
 		{
@@ -418,18 +492,7 @@ Map loadMap(const std::string& dir)
 			if (!map.localMaps.count(e.from) || !map.localMaps.count(e.to))
 				throw std::runtime_error("the local-map graph refers to a missing local map");
 	}
-	catch (const std::exception& e)
-	{
-		std::string what = e.what();
-		if (const auto pos = what.find("Message:"); pos != std::string::npos)
-			what = what.substr(pos + 9, what.find('\n', pos) - pos - 9);
-		if (const auto pos = what.find("Call stack"); pos != std::string::npos)
-			what.resize(pos);
-		while (!what.empty() && (what.back() == '\n' || what.back() == ' '))
-			what.pop_back();
-		throw std::runtime_error("cannot read map '" + path + "': " + what);
-	}
-	return map;
 }
+}  // namespace
 
 }  // namespace rasterslam
