@@ -14,6 +14,7 @@ PKGS=(
   zlib1g-dev
   libceres-dev
   libcli11-dev nlohmann-json3-dev
+  libyaml-cpp-dev
   clang-format-14 jq
 )
 

@@ -1,11 +1,16 @@
 // Bag of binary words: k-medians clustering of synthetic descriptors, seeding determinism,
 // the L1 score, TF-IDF, the database (add, remove, query), the direct index and MRPT
 // serialization (round trip, unknown version, truncated stream).
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/io/CMemoryStream.h>
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/bow/vocabulary.h>
 
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <set>
 #include <string>
@@ -13,6 +18,8 @@
 
 #include "test_support.h"
 
+namespace fs = std::filesystem;
+namespace test = rasterslam::test;
 using namespace rasterslam::bow;
 
 namespace
@@ -389,6 +396,77 @@ TEST(Bow, VocabularySerialization)
 	const auto empty = roundTrip(Vocabulary{});
 	ASSERT_TRUE(empty);
 	EXPECT_TRUE(empty->empty());
+}
+
+TEST(Bow, VocabularyFileHasAChecksumAndOlderFilesStillLoad)
+{
+	const auto f = makeFixture();
+	const test::ScopedTempDir dir("bow-file");
+	const auto path = (dir / "v.vocab").string();
+	saveVocabularyFile(f.voc, path);
+	const auto back = loadVocabularyFile(path);
+	ASSERT_TRUE(back);
+	EXPECT_EQ(bytesOf(*back), bytesOf(f.voc));
+	// Nothing but the file is left (no temporary).
+	EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+
+	// The file uncompressed: "RSVB", version (1), body length (8), CRC-32 (4), body.
+	std::vector<uint8_t> raw;
+	{
+		mrpt::io::CFileGZInputStream in(path);
+		uint8_t buf[4096];
+		for (std::size_t n; (n = in.Read(buf, sizeof buf)) > 0;)
+			raw.insert(raw.end(), buf, buf + n);
+	}
+	ASSERT_GT(raw.size(), 17u);
+	EXPECT_EQ(std::string(raw.begin(), raw.begin() + 4), "RSVB");
+	const auto write = [&](const std::vector<uint8_t>& bytes)
+	{
+		mrpt::io::CFileGZOutputStream out(path);
+		out.Write(bytes.data(), bytes.size());
+	};
+	const auto errorOf = [&]() -> std::string
+	{
+		try
+		{
+			loadVocabularyFile(path);
+		}
+		catch (const std::runtime_error& e)
+		{
+			return e.what();
+		}
+		return "";
+	};
+	std::mt19937 rng(8);
+	std::uniform_int_distribution<std::size_t> pos(17, raw.size() - 1);
+	for (int i = 0; i < 20; i++)
+	{
+		auto bad = raw;
+		bad[pos(rng)] ^= static_cast<uint8_t>(1u << (i % 8));
+		write(bad);
+		EXPECT_EQ(errorOf(), "vocabulary '" + path + "': checksum mismatch (the file is damaged)");
+	}
+	write(std::vector<uint8_t>(raw.begin(), raw.end() - 1));
+	EXPECT_NE(errorOf().find("truncated"), std::string::npos) << errorOf();
+	auto huge = raw;
+	const uint64_t big = uint64_t(1) << 40;
+	std::memcpy(huge.data() + 5, &big, 8);
+	write(huge);
+	EXPECT_NE(errorOf().find("damaged header"), std::string::npos) << errorOf();
+
+	// A file of the older format (the MRPT object alone) still loads.
+	{
+		mrpt::io::CFileGZOutputStream out(path);
+		mrpt::serialization::archiveFrom(out) << f.voc;
+	}
+	const auto old = loadVocabularyFile(path);
+	ASSERT_TRUE(old);
+	EXPECT_EQ(bytesOf(*old), bytesOf(f.voc));
+	// Not a vocabulary, and no file: named.
+	std::ofstream(path) << "text";
+	EXPECT_NE(errorOf().find("vocabulary '" + path + "': "), std::string::npos) << errorOf();
+	fs::remove(path);
+	EXPECT_EQ(errorOf(), "vocabulary '" + path + "': no such file");
 }
 
 TEST(Bow, DatabaseSerialization)

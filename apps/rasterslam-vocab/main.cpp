@@ -99,24 +99,15 @@ int train(const TrainArgs& args)
 	std::cout << "words: " << voc.words() << " (k = " << voc.branching() << ", L = " << voc.levels()
 	          << "), trained in " << secs << " s\n";
 
-	// A temporary name then a rename: an interrupted run never leaves a half-written file
-	// under the final name.
-	const std::string tmp = output + ".tmp";
+	// Written with its checksum, under a temporary name then renamed: an interrupted run never
+	// leaves a half-written file under the final name.
 	try
 	{
-		{
-			mrpt::io::CFileGZOutputStream f;
-			if (!f.open(tmp))
-				throw std::runtime_error("cannot open for writing");
-			mrpt::serialization::archiveFrom(f) << voc;
-		}
-		fs::rename(tmp, output);
+		bow::saveVocabularyFile(voc, output);
 	}
 	catch (const std::exception& e)
 	{
-		std::error_code ec;
-		fs::remove(tmp, ec);
-		std::cerr << "rasterslam-vocab: " << output << ": " << e.what() << "\n";
+		std::cerr << "rasterslam-vocab: " << e.what() << "\n";
 		return 1;
 	}
 	std::cout << "wrote " << output << "\n";
@@ -128,22 +119,12 @@ bool load(const std::string& file, bow::Vocabulary& voc)
 {
 	try
 	{
-		std::error_code ec;
-		if (!fs::is_regular_file(file, ec))
-			throw std::runtime_error("no such file");
-		mrpt::io::CFileGZInputStream f;
-		if (!f.open(file))
-			throw std::runtime_error("cannot open");
-		const auto obj = mrpt::serialization::archiveFrom(f).ReadObject();
-		const auto v = std::dynamic_pointer_cast<bow::Vocabulary>(obj);
-		if (!v)
-			throw std::runtime_error("not a rasterslam::bow::Vocabulary");
-		voc = *v;
+		voc = *bow::loadVocabularyFile(file);
 		return true;
 	}
 	catch (const std::exception& e)
 	{
-		std::cerr << "rasterslam-vocab: " << file << ": " << e.what() << "\n";
+		std::cerr << "rasterslam-vocab: " << e.what() << "\n";
 		return false;
 	}
 }
@@ -239,6 +220,7 @@ int main(int argc, char** argv)
 	    "rasterslam-vocab train --images DIR [--images DIR ...] -o vocab.bin [--branching 10] "
 	    "[--levels 4] [--seed 1] [--features 2000]\n"
 	    "rasterslam-vocab info vocab.bin\n"
+	    "rasterslam-vocab convert old.vocab -o new.vocab\n"
 	    "rasterslam-vocab bench --vocab vocab.bin [--entries 100,1000,10000] [--seed 1]\n"
 	    "(rasterslam-vocab SUBCOMMAND --help for its options)\n\n" +
 	    std::string(cli::exitCodesFooter()));
@@ -284,6 +266,18 @@ int main(int argc, char** argv)
 	    ->check(CLI::ExistingFile.description(""))
 	    ->type_name("FILE");
 
+	std::string convertIn, convertOut;
+	CLI::App* convertCmd = cli::subcommand(
+	    app, "convert",
+	    "rewrite a vocabulary file in the current format (with its checksum), e.g. an older one");
+	convertCmd->add_option("vocab", convertIn, "vocabulary file to read")
+	    ->required()
+	    ->check(CLI::ExistingFile.description(""))
+	    ->type_name("FILE");
+	convertCmd->add_option("-o,--output", convertOut, "vocabulary file to write (may be the input)")
+	    ->required()
+	    ->type_name("FILE");
+
 	BenchArgs b;
 	CLI::App* benchCmd = cli::subcommand(
 	    app, "bench", "time database queries on synthetic bags of words (Zipf-like word draws)");
@@ -309,6 +303,15 @@ int main(int argc, char** argv)
 			return train(t);
 		if (infoCmd->parsed())
 			return info(infoFile);
+		if (convertCmd->parsed())
+		{
+			bow::Vocabulary voc;
+			if (!load(convertIn, voc))
+				return cli::kExitError;
+			bow::saveVocabularyFile(voc, convertOut);
+			std::cout << "wrote " << convertOut << " (" << voc.words() << " words)\n";
+			return 0;
+		}
 		return bench(b);
 	}
 	catch (const std::exception& e)

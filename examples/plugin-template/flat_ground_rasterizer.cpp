@@ -67,11 +67,9 @@ void FlatGroundRasterizer::initializeImpl(rasterslam::ParamReader& p)
 	p.requirePositive(maxRange_m_ - minRange_m_, "max_range_m - min_range_m");
 	p.requirePositive(groundRadius_m_ - minRange_m_, "ground_radius_m - min_range_m");
 	p.requirePositive(maxHeight_m_, "max_height_m");
-	if (!(groundPercentile_ >= 0 && groundPercentile_ <= 100))
-		throw rasterslam::ConfigError(p.context() + ".ground_percentile: must be in [0, 100]");
+	p.requireRange(groundPercentile_, 0, 100, "ground_percentile");
 	if (2 * maxRange_m_ / resolution_m_ > 8192)
-		throw rasterslam::ConfigError(p.context() +
-		                              ".resolution_m: the image would exceed 8192 pixels a side");
+		p.reject("resolution_m", "the image would exceed 8192 pixels a side");
 	size_ = static_cast<int>(std::ceil(2 * maxRange_m_ / resolution_m_));
 	groundZ_ = -sensorHeight_m_;
 	MRPT_LOG_INFO_FMT("%d x %d px images, %.2f m a pixel, grey level from the %s", size_, size_,

@@ -1,27 +1,246 @@
 #include <rasterslam/core/config.h>
+#include <yaml-cpp/eventhandler.h>
+#include <yaml-cpp/exceptions.h>
+#include <yaml-cpp/mark.h>
+#include <yaml-cpp/parser.h>
 
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
+#include <map>
 #include <sstream>
 
 namespace rasterslam
 {
 using mrpt::containers::yaml;
 
-yaml loadYamlFile(const std::string& path)
+namespace
+{
+/** "source:line:column" of a yaml-cpp mark (0-based there); "source" without one. */
+std::string position(const std::string& source, const YAML::Mark& m)
+{
+	if (m.is_null() || m.line < 0)
+		return source;
+	return source + ":" + std::to_string(m.line + 1) + ":" + std::to_string(m.column + 1);
+}
+std::string at(const std::string& source, const YAML::Mark& m)
+{
+	return position(source, m) + ": ";
+}
+
+/** Walks yaml-cpp's parse events: the key path of every node, duplicate keys in a map (which
+ *  yaml-cpp accepts, the last one winning in MRPT's yaml), anchors, aliases and merge keys
+ *  (MRPT's parser does not support them). Records where each key path is written. */
+class StrictHandler : public YAML::EventHandler
+{
+   public:
+	explicit StrictHandler(std::string source) : source_(std::move(source)) {}
+
+	/** First occurrence of each key path ("a.b", "a.list[2].c"). */
+	std::map<std::string, YAML::Mark> keys;
+
+	void OnDocumentStart(const YAML::Mark& m) override
+	{
+		if (++documents_ > 1)
+			fail(m, "a second YAML document ('---'): a config file holds one");
+	}
+	void OnDocumentEnd() override {}
+	void OnNull(const YAML::Mark& m, YAML::anchor_t) override { node(m, Kind::Null, ""); }
+	void OnAlias(const YAML::Mark& m, YAML::anchor_t) override
+	{
+		fail(m,
+		     "an alias (*name): anchors and aliases are not supported in config files, "
+		     "write the values out");
+	}
+	void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t,
+	              const std::string& value) override
+	{
+		node(m, Kind::Scalar, value);
+	}
+	void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t,
+	                     YAML::EmitterStyle::value style) override
+	{
+		node(m, Kind::Sequence, "");
+		push(false, m, style);
+	}
+	void OnSequenceEnd() override { stack_.pop_back(); }
+	void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t,
+	                YAML::EmitterStyle::value style) override
+	{
+		node(m, Kind::Map, "");
+		push(true, m, style);
+	}
+	void OnMapEnd() override { stack_.pop_back(); }
+	void OnAnchor(const YAML::Mark& m, const std::string& name) override
+	{
+		fail(m, "anchor '&" + name +
+		            "': anchors and aliases are not supported in config files, write the "
+		            "values out");
+	}
+
+	/** The innermost flow collection ({...} or [...]) still open, for syntax errors. */
+	std::string openFlow() const
+	{
+		for (auto it = stack_.rbegin(); it != stack_.rend(); ++it)
+			if (it->flow)
+				return std::string(" (in the '") + (it->map ? "{" : "[") + "' opened at line " +
+				       std::to_string(it->mark.line + 1) + ", column " +
+				       std::to_string(it->mark.column + 1) + ")";
+		return "";
+	}
+
+   private:
+	enum class Kind
+	{
+		Null,
+		Scalar,
+		Sequence,
+		Map
+	};
+	struct Frame
+	{
+		bool map = false;
+		std::string path;
+		YAML::Mark mark;
+		bool flow = false;
+		bool expectKey = true;
+		std::string key;  //!< path of the key whose value comes next
+		std::size_t index = 0;
+	};
+
+	void push(bool map, const YAML::Mark& m, YAML::EmitterStyle::value style)
+	{
+		Frame f;
+		f.map = map;
+		f.path = pendingPath_;
+		f.mark = m;
+		f.flow = style == YAML::EmitterStyle::Flow;
+		stack_.push_back(std::move(f));
+	}
+
+	[[noreturn]] void fail(const YAML::Mark& m, const std::string& what) const
+	{
+		throw ConfigError(at(source_, m) + what);
+	}
+
+	/** A node starts: a key of the enclosing map, or a value (whose path is pendingPath_). */
+	void node(const YAML::Mark& m, Kind kind, const std::string& value)
+	{
+		if (stack_.empty())
+		{
+			pendingPath_.clear();
+			return;
+		}
+		Frame& f = stack_.back();
+		if (f.map && f.expectKey)
+		{
+			const std::string where = f.path.empty() ? "" : " in '" + f.path + "'";
+			if (kind == Kind::Null)
+				fail(m, "an empty or null key" + where);
+			if (kind != Kind::Scalar)
+				fail(m, "a list or a map as a key" + where + ": keys must be plain names");
+			if (value == "<<")
+				fail(m, "merge key '<<'" + where +
+				            ": merge keys are not supported in config "
+				            "files, write the keys out");
+			const std::string path = f.path.empty() ? value : f.path + "." + value;
+			const auto [it, inserted] = keys.emplace(path, m);
+			if (!inserted)
+				fail(m, "duplicate key '" + path + "' (first at line " +
+				            std::to_string(it->second.line + 1) + ")");
+			f.key = path;
+			f.expectKey = false;
+			return;
+		}
+		if (f.map)
+		{
+			pendingPath_ = f.key;
+			f.expectKey = true;
+		}
+		else
+			pendingPath_ = f.path + "[" + std::to_string(f.index++) + "]";
+	}
+
+	std::string source_;
+	int documents_ = 0;
+	std::vector<Frame> stack_;
+	std::string pendingPath_;
+};
+
+/** Runs the strict check; returns the key positions. */
+std::map<std::string, YAML::Mark> checkYaml(const std::string& text, const std::string& source)
+{
+	StrictHandler h(source);
+	std::istringstream in(text);
+	try
+	{
+		YAML::Parser parser(in);
+		while (parser.HandleNextDocument(h))
+		{
+		}
+	}
+	catch (const YAML::Exception& e)
+	{
+		// yaml-cpp's messages for a key indented wrongly in a block map name no cause.
+		const bool blockMap = e.msg == "end of map not found" || e.msg == "illegal map value";
+		throw ConfigError(at(source, e.mark) + "YAML syntax error: " + e.msg + h.openFlow() +
+		                  (blockMap && h.openFlow().empty() ? " (check the indentation)" : ""));
+	}
+	return std::move(h.keys);
+}
+
+std::string readFile(const std::string& path)
 {
 	std::ifstream f(path);
 	if (!f)
 		throw ConfigError("cannot read config file '" + path + "'");
 	std::stringstream ss;
 	ss << f.rdbuf();
+	return ss.str();
+}
+
+/** A value for a message: 0.3, -5, 1e-09. */
+std::string num(double v)
+{
+	std::ostringstream os;
+	os << std::setprecision(10) << v;
+	return os.str();
+}
+}  // namespace
+
+void checkYamlText(const std::string& text, const std::string& source)
+{
+	checkYaml(text, source);
+}
+
+std::string configLocation(const std::string& file, const std::string& keyPath)
+{
+	try
+	{
+		const auto keys = checkYaml(readFile(file), file);
+		const auto it = keys.find(keyPath);
+		if (it != keys.end())
+			return position(file, it->second);
+	}
+	catch (const std::exception&)
+	{
+	}
+	return file;
+}
+
+yaml loadYamlFile(const std::string& path)
+{
+	const std::string text = readFile(path);
+	// Strict first: MRPT's parser lets duplicate keys pass (the last one wins) and reports
+	// some syntax errors on stderr only, returning what it read up to there.
+	checkYamlText(text, path);
 	yaml y;
 	try
 	{
-		y = yaml::FromText(ss.str());
+		y = yaml::FromText(text);
 	}
 	catch (const std::exception& e)
 	{
@@ -42,10 +261,22 @@ ParamReader::ParamReader(const yaml& node, std::string context, std::string sour
 		                  "' must be a map of parameters");
 }
 
+std::string ParamReader::location(const std::string& key) const
+{
+	return source_.empty() ? "" : configLocation(source_, context_ + "." + key);
+}
+
 void ParamReader::fail(const std::string& key, const std::string& what) const
 {
-	throw ConfigError((source_.empty() ? "" : source_ + ": ") + "key '" + context_ + "." + key +
+	const auto loc = location(key);
+	throw ConfigError((loc.empty() ? "" : loc + ": ") + "key '" + context_ + "." + key +
 	                  "': " + what);
+}
+
+void ParamReader::reject(const std::string& key, const std::string& what) const
+{
+	const auto loc = location(key);
+	throw ConfigError((loc.empty() ? "" : loc + ": ") + context_ + "." + key + ": " + what);
 }
 
 std::optional<std::string> ParamReader::scalar(const std::string& key) const
@@ -189,11 +420,26 @@ std::string ParamReader::getPath(const std::string& key, const std::string& def)
 	return v;
 }
 
+void ParamReader::require(bool ok, double v, const std::string& key,
+                          const std::string& expected) const
+{
+	if (!ok)
+		reject(key, expected + ", got " + num(v));
+}
+
 void ParamReader::requirePositive(double v, const std::string& key) const
 {
-	if (!(v > 0))
-		throw ConfigError((source_.empty() ? "" : source_ + ": ") + context_ + "." + key +
-		                  ": must be > 0, got " + std::to_string(v));
+	require(v > 0, v, key, "must be > 0");
+}
+
+void ParamReader::requireAtLeast(double v, double min, const std::string& key) const
+{
+	require(v >= min, v, key, "must be >= " + num(min));
+}
+
+void ParamReader::requireRange(double v, double lo, double hi, const std::string& key) const
+{
+	require(v >= lo && v <= hi, v, key, "must be in [" + num(lo) + ", " + num(hi) + "]");
 }
 
 void ParamReader::finish() const

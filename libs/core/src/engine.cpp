@@ -93,8 +93,8 @@ Plugin::Ptr Engine::makeRole(const yaml& cfg, const std::string& section,
 	{
 		const auto k = kv.first.as<std::string>();
 		if (k != "class" && k != "params")
-			throw ConfigError(source_ + ": unknown key '" + section + "." + k +
-			                  "' (expected class, params)");
+			throw ConfigError(configLocation(source_, section + "." + k) + ": unknown key '" +
+			                  section + "." + k + "' (expected class, params)");
 	}
 	if (!s.has("class") || !s["class"].isScalar())
 		throw ConfigError(source_ + ": key '" + section + ".class' is required (a class name)");
@@ -106,7 +106,8 @@ Plugin::Ptr Engine::makeRole(const yaml& cfg, const std::string& section,
 	}
 	catch (const std::exception& e)
 	{
-		throw ConfigError(source_ + ": key '" + section + ".class': " + e.what());
+		throw ConfigError(configLocation(source_, section + ".class") + ": key '" + section +
+		                  ".class': " + e.what());
 	}
 	p->setMinLoggingLevel(getMinLoggingLevel());
 	p->setLoggerName(section);
@@ -131,7 +132,8 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 			std::string list;
 			for (const auto& s : kSections)
 				list += (list.empty() ? "" : ", ") + s;
-			throw ConfigError(source_ + ": unknown section '" + k + "' (known: " + list + ")");
+			throw ConfigError(configLocation(source_, k) + ": unknown section '" + k +
+			                  "' (known: " + list + ")");
 		}
 	}
 	std::vector<std::string> modules;
@@ -169,22 +171,16 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		anchorAgree_deg_ = p.getDouble("anchor_agree_deg", anchorAgree_deg_);
 		anchorEveryScan_ = p.getBool("anchor_every_scan", anchorEveryScan_);
 		anchorHitSpacing_s_ = p.getDouble("anchor_hit_spacing_s", anchorHitSpacing_s_);
-		if (!(anchorHitSpacing_s_ >= 0))
-			throw ConfigError(source_ + ": key 'engine.anchor_hit_spacing_s' must be >= 0");
-		if (anchorMinAgreeing_ < 1)
-			throw ConfigError(source_ + ": key 'engine.anchor_min_agreeing' must be >= 1");
-		if (!(anchorAgree_m_ > 0) || !(anchorAgree_deg_ > 0))
-			throw ConfigError(source_ +
-			                  ": keys 'engine.anchor_agree_m' and 'anchor_agree_deg' must be > 0");
-		if (optimizeEveryKeyframes_ < 1)
-			throw ConfigError(source_ + ": key 'engine.optimize_every_keyframes' must be >= 1");
-		if (!(testCorruptLoops_ >= 0 && testCorruptLoops_ <= 1))
-			throw ConfigError(source_ + ": key 'engine.test_corrupt_loops' must be in [0, 1]");
-		if (!(rawlogOdoSigma_m_ > 0) || !(rawlogOdoSigma_deg_ > 0))
-			throw ConfigError(source_ + ": engine.rawlog_odometry_sigma_m and _deg must be > 0");
 		p.finish();
-		if (minPoints_ < 1)
-			throw ConfigError(source_ + ": key 'engine.min_points' must be >= 1");
+		p.requireAtLeast(minPoints_, 1, "min_points");
+		p.requirePositive(rawlogOdoSigma_m_, "rawlog_odometry_sigma_m");
+		p.requirePositive(rawlogOdoSigma_deg_, "rawlog_odometry_sigma_deg");
+		p.requireAtLeast(optimizeEveryKeyframes_, 1, "optimize_every_keyframes");
+		p.requireRange(testCorruptLoops_, 0, 1, "test_corrupt_loops");
+		p.requireAtLeast(anchorMinAgreeing_, 1, "anchor_min_agreeing");
+		p.requirePositive(anchorAgree_m_, "anchor_agree_m");
+		p.requirePositive(anchorAgree_deg_, "anchor_agree_deg");
+		p.requireAtLeast(anchorHitSpacing_s_, 0, "anchor_hit_spacing_s");
 		inForce_["engine"] = p.inForce();
 	}
 	rasterizer_ = std::dynamic_pointer_cast<Rasterizer>(

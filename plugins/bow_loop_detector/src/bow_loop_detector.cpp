@@ -36,15 +36,23 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	ransac_.minInliers = p.getInt("min_inliers", 25);
 	ransac_.maxIterations = p.getInt("ransac_max_iterations", 1000);
 	relocMinInliers_ = p.getInt("relocalization_min_inliers", relocMinInliers_);
-	if (relocMinInliers_ < 3)
-		throw ConfigError(p.context() + ".relocalization_min_inliers: must be >= 3");
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
-	if (onlineMinMaps_ < 2)
-		throw ConfigError(p.context() + ".online_min_maps: must be >= 2");
-	if (maxCandidates_ < 1)
-		throw ConfigError(p.context() + ".max_candidates: must be >= 1");
-	if (queryOrb_.numFeatures < 1)
-		throw ConfigError(p.context() + ".query_features: must be >= 1");
+	p.requirePositive(searchRadius_m_, "search_radius_m");
+	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
+	p.requireAtLeast(onlineBranching_, 2, "online_branching");
+	p.requireAtLeast(onlineLevels_, 1, "online_levels");
+	p.requireAtLeast(queryOrb_.numFeatures, 1, "query_features");
+	p.requireAtLeast(excludeRecent_s_, 0, "exclude_recent_s");
+	p.requireAtLeast(minScore_, 0, "min_score");  // normalized: may exceed 1
+	p.requireAtLeast(maxCandidates_, 1, "max_candidates");
+	p.requireRange(match_.maxDistance, 0, 256, "max_hamming");  // ORB: 256-bit descriptors
+	p.require(match_.ratio > 0 && match_.ratio <= 1, match_.ratio, "ratio",
+	          "must be in (0, 1] (1 disables the test)");
+	p.requirePositive(ransac_.inlierThreshold_m, "ransac_threshold_m");
+	p.requireAtLeast(ransac_.minInliers, 3, "min_inliers");  // a rigid fit takes 3 points
+	p.requireAtLeast(ransac_.maxIterations, 1, "ransac_max_iterations");
+	p.requireAtLeast(relocMinInliers_, 3, "relocalization_min_inliers");
+	p.requirePositive(pointSigma_m_, "point_sigma_m");
 
 	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);
 	vocab_.reset();
@@ -53,14 +61,17 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	{
 		std::error_code ec;
 		if (!std::filesystem::exists(vocabularyFile_, ec))
-			throw ConfigError(p.context() + ".vocabulary_file: '" + vocabularyFile_ +
-			                  "' does not exist");
-		mrpt::io::CFileGZInputStream f(vocabularyFile_);
-		auto obj = mrpt::serialization::archiveFrom(f).ReadObject();
-		vocab_ = std::dynamic_pointer_cast<bow::Vocabulary>(obj);
+			p.reject("vocabulary_file", "'" + vocabularyFile_ + "' does not exist");
+		try
+		{
+			vocab_ = bow::loadVocabularyFile(vocabularyFile_);
+		}
+		catch (const std::exception& e)
+		{
+			p.reject("vocabulary_file", e.what());
+		}
 		if (!vocab_ || vocab_->empty())
-			throw ConfigError(p.context() + ".vocabulary_file: '" + vocabularyFile_ +
-			                  "' holds no vocabulary");
+			p.reject("vocabulary_file", "'" + vocabularyFile_ + "' holds no vocabulary");
 	}
 	db_ = bow::Database();
 	entryMap_.clear();

@@ -34,14 +34,10 @@ class CeresOptimizer : public Optimizer
 		lossScale_ = p.getDouble("loss_scale", lossScale_);
 		p.requirePositive(lossScale_, "loss_scale");
 		maxIterations_ = p.getInt("max_iterations", maxIterations_);
-		if (maxIterations_ < 1)
-			throw ConfigError(p.context() + ".max_iterations: must be >= 1, got " +
-			                  std::to_string(maxIterations_));
+		p.requireAtLeast(maxIterations_, 1, "max_iterations");
 		functionTolerance_ = p.getDouble("function_tolerance", functionTolerance_);
 		// Ceres accepts 0 (never stop on the cost's relative change) but rejects negatives.
-		if (!(functionTolerance_ >= 0))
-			throw ConfigError(p.context() + ".function_tolerance: must be >= 0, got " +
-			                  std::to_string(functionTolerance_));
+		p.requireAtLeast(functionTolerance_, 0, "function_tolerance");
 	}
 
    private:

@@ -58,17 +58,24 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 	g.iterations = p.getInt("ground_ransac_iterations", g.iterations);
 	g.inlierThreshold_m = p.getDouble("ground_inlier_threshold_m", g.inlierThreshold_m);
 	g.maxTilt_deg = p.getDouble("ground_max_tilt_deg", g.maxTilt_deg);
+	p.requireAtLeast(r.minRange_m, 0, "min_range_m");
 	p.requirePositive(r.maxRange_m, "max_range_m");
 	p.requirePositive(r.resolution_m, "resolution_m");
 	p.requirePositive(r.pinholeSize_px, "pinhole_size_px");
 	p.requirePositive(r.cameraHeight_m, "camera_height_m");
-	p.requirePositive(r.greyMax_m - r.greyMin_m, "grey_max_m - grey_min_m");
-	p.requirePositive(g.maxCandidates, "ground_max_candidates");
-	p.requirePositive(g.iterations, "ground_ransac_iterations");
-	if (r.minRange_m >= r.maxRange_m)
-		throw ConfigError(p.context() + ".min_range_m: must be below max_range_m");
+	p.requirePositive(r.sensorHeight_m, "sensor_height_m");
+	p.requireAtLeast(r.groundThreshold_m, 0, "ground_threshold_m");
+	p.requireAtLeast(r.belowGround_m, 0, "below_ground_m");
+	p.require(r.greyMax_m > r.greyMin_m, r.greyMax_m, "grey_max_m", "must be above grey_min_m");
+	p.requirePositive(g.candidateMaxRange_m, "ground_candidate_max_range_m");
+	p.requireAtLeast(g.maxCandidates, 3, "ground_max_candidates");  // a plane takes 3 points
+	p.requireAtLeast(g.iterations, 1, "ground_ransac_iterations");
+	p.requirePositive(g.inlierThreshold_m, "ground_inlier_threshold_m");
+	p.requireRange(g.maxTilt_deg, 0, 90, "ground_max_tilt_deg");
+	p.require(r.minRange_m < r.maxRange_m, r.minRange_m, "min_range_m",
+	          "must be below max_range_m");
 	if (r.mode == raster::ProjectionMode::Bev && 2 * r.maxRange_m / r.resolution_m > 8192)
-		throw ConfigError(p.context() + ".resolution_m: the image would exceed 8192 pixels a side");
+		p.reject("resolution_m", "the image would exceed 8192 pixels a side");
 	raster_ = r;
 	ground_ = g;
 }

@@ -78,12 +78,18 @@ void GicpOdometry::initializeImpl(ParamReader& p)
 	infoTranslation_ = p.getDouble("information_translation", infoTranslation_);
 	infoRotation_ = p.getDouble("information_rotation", infoRotation_);
 	p.requirePositive(voxel_m_, "voxel_m");
+	p.requireAtLeast(minRange_m_, 0, "min_range_m");
 	p.requirePositive(maxRange_m_, "max_range_m");
+	p.require(minRange_m_ < maxRange_m_, minRange_m_, "min_range_m", "must be below max_range_m");
 	p.requirePositive(maxCorrespondence_m_, "max_correspondence_m");
 	p.requirePositive(kCorrespondences_, "k_correspondences");
 	p.requirePositive(maxIterations_, "max_iterations");
 	p.requirePositive(keyframeEvery_, "keyframe_every");
 	p.requirePositive(minPoints_, "min_points");
+	p.requireAtLeast(transformationEpsilon_, 0, "transformation_epsilon");
+	p.requirePositive(maxFitness_m2_, "max_fitness_m2");
+	p.requirePositive(infoTranslation_, "information_translation");
+	p.requirePositive(infoRotation_, "information_rotation");
 	previous_.reset();
 	previousCov_.reset();
 	velocity_.setIdentity();

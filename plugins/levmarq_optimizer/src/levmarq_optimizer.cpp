@@ -24,8 +24,11 @@ class LevMarqOptimizer : public Optimizer
 		tau_ = p.getDouble("tau", tau_);
 		e1_ = p.getDouble("e1", e1_);
 		e2_ = p.getDouble("e2", e2_);
-		if (maxIterations_ < 1)
-			throw ConfigError(p.context() + ".max_iterations: must be >= 1");
+		p.requireAtLeast(maxIterations_, 1, "max_iterations");
+		p.requireAtLeast(initialLambda_, 0, "initial_lambda");  // 0: chosen from tau
+		p.requirePositive(tau_, "tau");
+		p.requireAtLeast(e1_, 0, "e1");
+		p.requireAtLeast(e2_, 0, "e2");
 	}
 
    private:

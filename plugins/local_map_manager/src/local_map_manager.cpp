@@ -129,21 +129,22 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	indexReplaced_ = p.getBool("index_replaced", indexReplaced_);
 	maxOnlineMaps_ = p.getInt("max_online_maps", maxOnlineMaps_);
 	offlineDir_ = p.getString("offline_dir", "");
-	if (cullDistance_m_ < 0)
-		throw ConfigError(p.context() + ".cull_distance_m: must be >= 0 (0: never)");
-	if (maxOnlineMaps_ < 0)
-		throw ConfigError(p.context() + ".max_online_maps: must be >= 0 (0: no bound)");
-	if (keyframesPerMap_ < 1 || keyframesPerMap_ > static_cast<int>(LocalMap::kMaxKeyframes))
-		throw ConfigError(p.context() + ".keyframes_per_map: must be in 1..32");
-	if (!(maxExtent_m_ > 0))
-		throw ConfigError(p.context() + ".max_extent_m: must be > 0");
-	if (ba_.maxIterations < 1)
-		throw ConfigError(p.context() + ".ba_max_iterations: must be >= 1");
-	if (!(ba_.sigmaXY_m > 0) || !(ba_.sigmaZ_m > 0) || !(ba_.huber > 0) || !(ba_.gate_m > 0))
-		throw ConfigError(p.context() +
-		                  ": ba_sigma_xy_m, ba_sigma_z_m, ba_huber and ba_gate_m must be > 0");
-	if (!(mapRaster_.resolution_m > 0) || !(mapRaster_.maxRange_m > 0))
-		throw ConfigError(p.context() + ": map_resolution_m and map_extent_m must be > 0");
+	p.require(cullDistance_m_ >= 0, cullDistance_m_, "cull_distance_m", "must be >= 0 (0: never)");
+	p.require(maxOnlineMaps_ >= 0, maxOnlineMaps_, "max_online_maps", "must be >= 0 (0: no bound)");
+	p.requireRange(keyframesPerMap_, 1, static_cast<double>(LocalMap::kMaxKeyframes),
+	               "keyframes_per_map");
+	p.requirePositive(maxExtent_m_, "max_extent_m");
+	p.requireAtLeast(ba_.maxIterations, 1, "ba_max_iterations");
+	p.requirePositive(ba_.sigmaXY_m, "ba_sigma_xy_m");
+	p.requirePositive(ba_.sigmaZ_m, "ba_sigma_z_m");
+	p.requirePositive(ba_.huber, "ba_huber");
+	p.requirePositive(ba_.gate_m, "ba_gate_m");
+	p.requireRange(ba_.maxHamming, 0, 256, "ba_max_hamming");  // ORB: 256-bit descriptors
+	p.requirePositive(mapRaster_.resolution_m, "map_resolution_m");
+	p.requirePositive(mapRaster_.maxRange_m, "map_extent_m");
+	if (2 * mapRaster_.maxRange_m / mapRaster_.resolution_m > 8192)
+		p.reject("map_resolution_m", "the local-map image would exceed 8192 pixels a side");
+	p.requireAtLeast(mapOrb_.numFeatures, 1, "map_features");
 	orb_ = std::make_unique<features::OrbExtractor>(mapOrb_);
 	map_ = Map();
 	map_.sessions = 1;

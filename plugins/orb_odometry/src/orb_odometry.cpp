@@ -101,14 +101,30 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	p.requirePositive(o.numFeatures, "num_features");
 	p.requirePositive(o.gridCols, "grid_cols");
 	p.requirePositive(o.gridRows, "grid_rows");
+	p.requireRange(o.fastThreshold, 1, 255, "fast_threshold");  // grey-level difference
+	p.require(o.minFastThreshold >= 1 && o.minFastThreshold <= o.fastThreshold, o.minFastThreshold,
+	          "min_fast_threshold",
+	          "must be in [1, fast_threshold (" + std::to_string(o.fastThreshold) + ")]");
 	p.requirePositive(o.levels, "scale_levels");
-	p.requirePositive(o.scaleFactor - 1.0, "scale_factor - 1");
+	p.require(o.scaleFactor > 1, o.scaleFactor, "scale_factor", "must be > 1");
+	p.requireAtLeast(o.patchSize, 2, "patch_size");             // OpenCV's ORB needs 2
+	p.requireRange(match_.maxDistance, 0, 256, "max_hamming");  // ORB: 256-bit descriptors
+	p.require(match_.ratio > 0 && match_.ratio <= 1, match_.ratio, "ratio",
+	          "must be in (0, 1] (1 disables the test)");
+	p.requireAtLeast(match_.gateRadius_m, 0, "gate_m");
 	p.requirePositive(ransac_.inlierThreshold_m, "ransac_threshold_m");
 	p.requirePositive(ransac_.maxIterations, "ransac_max_iterations");
-	p.requirePositive(ransac_.minInliers - 2, "min_inliers - 2");
+	p.require(ransac_.confidence > 0 && ransac_.confidence < 1, ransac_.confidence,
+	          "ransac_confidence", "must be in (0, 1)");
+	p.requireAtLeast(ransac_.minInliers, 3, "min_inliers");  // a rigid fit takes 3 points
+	p.requireAtLeast(ransac_.refinements, 0, "refinements");
 	p.requirePositive(kfMinFrames_, "keyframe_min_frames");
+	p.requireAtLeast(kfMinShared_, 0, "keyframe_min_shared");
 	p.requirePositive(kfMaxFrames_, "keyframe_max_frames");
+	p.requireAtLeast(weakInliers_, 0, "weak_inliers");
+	p.requirePositive(maxStep_m_, "max_step_m");
 	p.requirePositive(sigma_m_, "point_sigma_m");
+	p.requireRange(groundMaxCorrection_deg_, 0, 180, "ground_max_correction_deg");
 	orbParams_ = o;
 	orb_ = std::make_unique<features::OrbExtractor>(o);
 	kf_.reset();

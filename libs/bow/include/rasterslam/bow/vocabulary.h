@@ -10,6 +10,8 @@
 #include <array>
 #include <cstdint>
 #include <map>
+#include <memory>
+#include <string>
 #include <vector>
 
 namespace rasterslam::bow
@@ -130,5 +132,12 @@ class Database : public mrpt::serialization::CSerializable
 
 /** Converts OpenCV-style rows (N x 32 bytes, row-major) to descriptors. */
 std::vector<Descriptor> toDescriptors(const uint8_t* data, std::size_t rows);
+
+/** Writes a vocabulary file (gzip: "RSVB", version, the body's length and CRC-32, the MRPT
+ *  serialization), under a temporary name then renamed. Throws naming the file. */
+void saveVocabularyFile(const Vocabulary& vocabulary, const std::string& path);
+/** Reads a vocabulary file, checking its checksum; files written before the checksum (the MRPT
+ *  object alone) are read too. Throws std::runtime_error naming the file and what is wrong. */
+std::shared_ptr<Vocabulary> loadVocabularyFile(const std::string& path);
 
 }  // namespace rasterslam::bow

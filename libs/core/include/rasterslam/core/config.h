@@ -19,8 +19,21 @@ class ConfigError : public std::runtime_error
 	using std::runtime_error::runtime_error;
 };
 
-/** Reads a YAML file whose root must be a map; throws ConfigError naming the file. */
+/** Reads a YAML file whose root must be a map; throws ConfigError naming the file. The text
+ *  is checked strictly first (see checkYamlText): syntax errors, duplicate keys, anchors,
+ *  aliases and merge keys are errors naming `file:line:column` and the key path. */
 mrpt::containers::yaml loadYamlFile(const std::string& path);
+
+/** Checks YAML text strictly (yaml-cpp), without building anything: it must be valid YAML,
+ *  one document, with unique keys in every map at any depth, plain scalar keys and no
+ *  anchors, aliases or merge keys (`<<`). Throws ConfigError
+ *  "source:line:column: what" (line and column 1-based). */
+void checkYamlText(const std::string& text, const std::string& source);
+
+/** Where key `keyPath` (dot-separated, e.g. "odometry.params.voxel_m") is written in the
+ *  config file `file`: "file:line:column"; just `file` when the file cannot be read or does
+ *  not hold that key. For error messages. */
+std::string configLocation(const std::string& file, const std::string& keyPath);
 
 /** Typed, strict reader of one parameter block (e.g. `odometry.params`).
  *  Every key read is recorded with the value in force; finish() throws on keys that were
@@ -43,8 +56,16 @@ class ParamReader
 	/** A file path; a relative one is taken relative to the config file's folder. */
 	std::string getPath(const std::string& key, const std::string& def);
 
-	/** Throws ConfigError naming `context.key` unless v > 0 (checks of values already read). */
+	/** Range checks of values already read: each throws ConfigError
+	 *  "file:line:column: context.key: must be ..., got v" (the position when the file holds
+	 *  the key) unless v > 0, v >= min, or lo <= v <= hi. */
 	void requirePositive(double v, const std::string& key) const;
+	void requireAtLeast(double v, double min, const std::string& key) const;
+	void requireRange(double v, double lo, double hi, const std::string& key) const;
+	/** Throws ConfigError "file:line:column: context.key: <expected>, got v" unless `ok`. */
+	void require(bool ok, double v, const std::string& key, const std::string& expected) const;
+	/** Throws ConfigError "file:line:column: context.key: what" (other checks of a key). */
+	[[noreturn]] void reject(const std::string& key, const std::string& what) const;
 
 	/** Throws ConfigError listing keys present in the node that were never read. */
 	void finish() const;
@@ -55,6 +76,8 @@ class ParamReader
    private:
 	std::optional<std::string> scalar(const std::string& key) const;
 	[[noreturn]] void fail(const std::string& key, const std::string& what) const;
+	/** "file:line:column" of `context.key` (or "file", or "" without a source). */
+	std::string location(const std::string& key) const;
 
 	mrpt::containers::yaml node_;
 	std::string context_, source_;
