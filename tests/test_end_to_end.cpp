@@ -1,5 +1,6 @@
 // End to end through the command line: the GICP baseline on real KITTI scans, and every kind
 // of bad input getting one clear error, a non-zero exit, and the outputs of what was read.
+#include <rasterslam/core/config.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/io/trajectory_io.h>
@@ -134,20 +135,113 @@ TEST(EndToEnd, BatchModeIsDeterministic)
 	EXPECT_EQ(sa, sb);
 }
 
-TEST(EndToEnd, RealtimePlaybackReportsLateScans)
+namespace
 {
-	RASTERSLAM_REQUIRE_SHARED_DATA();
-	const auto out = test::tempDir("e2e");
-	const auto r =
-	    test::runCommand(test::bin("rasterslam") + " run --rawlog " + kitti50() + " --config " +
-	                     gicpConfig() + " --last 4 --realtime --rate 2 --out " + out.string());
+/** A rawlog of small synthetic scans with the given time stamps. */
+std::string stampedRawlog(const fs::path& dir, const std::string& name,
+                          const std::vector<double>& stamps)
+{
+	const auto path = (dir / (name + ".rawlog")).string();
+	io::RawlogWriter w(path, 1);
+	std::mt19937 rng(3);
+	std::uniform_real_distribution<float> u(-20, 20);
+	for (const double t : stamps)
+	{
+		Scan s;
+		s.stamp = t;
+		for (int i = 0; i < 3000; i++)
+			s.points.push_back({u(rng), u(rng), u(rng) * 0.1f, 0});
+		w.writeScan(s);
+	}
+	w.close();
+	return path;
+}
+
+mrpt::containers::yaml runYaml(const fs::path& out)
+{
+	return loadYamlFile((out / "run.yaml").string());
+}
+}  // namespace
+
+TEST(EndToEnd, RealtimePlaybackPacesFromTheFirstScanWarnsOfGapsAndDropsLateScans)
+{
+	const test::ScopedTempDir dir("e2e-rt");
+	// 11 scans 0.2 s apart: played at their stamps, 2 s in all; 0.2 s of slack a scan, so none
+	// is late, the first included (the clock starts at it, not before the loading).
+	std::vector<double> stamps;
+	for (int i = 0; i <= 10; i++)
+		stamps.push_back(100 + 0.2 * i);
+	const auto paced = stampedRawlog(dir.path(), "paced", stamps);
+	auto r = test::runCommand(test::bin("rasterslam") + " run --config tracking --rawlog " + paced +
+	                          " --realtime --out " + (dir / "a").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	EXPECT_TRUE(
-	    std::regex_search(r.output, std::regex("5 scans, 5 keyframes, 0 lost, [0-9]+ late")))
+	auto y = runYaml(dir / "a");
+	EXPECT_EQ(y["counts"]["scans"].as<int>(), 11);
+	EXPECT_EQ(y["counts"]["late"].as<int>(), 0) << r.output;
+	EXPECT_GE(y["summary"]["wall_s"].as<double>(), 1.95);
+	EXPECT_EQ(r.output.find("a gap in the input"), std::string::npos) << r.output;
+
+	// A gap in the stamps longer than engine.realtime_max_wait_s: a warning naming the scan.
+	const auto gap = stampedRawlog(dir.path(), "gap", {10, 10.1, 10.2, 11.2, 11.3});
+	std::ofstream(dir / "wait.yaml") << "plugins: [librasterslam_plugin_elevation_rasterizer.so, "
+	                                    "librasterslam_plugin_orb_odometry.so]\n"
+	                                    "rasterizer: {class: rasterslam::ElevationRasterizer}\n"
+	                                    "odometry: {class: rasterslam::OrbOdometry}\n"
+	                                    "engine: {realtime_max_wait_s: 0.5}\n";
+	r = test::runCommand(test::bin("rasterslam") + " run --config " + (dir / "wait.yaml").string() +
+	                     " --rawlog " + gap + " --realtime --out " + (dir / "b").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_NE(r.output.find("scan #3 (t=11.200000): waiting 1.0 s for its time stamp: a gap in "
+	                        "the input"),
+	          std::string::npos)
 	    << r.output;
-	std::ifstream f(out / "run.yaml");
-	const std::string y((std::istreambuf_iterator<char>(f)), {});
-	EXPECT_NE(y.find("realtime: true"), std::string::npos) << y;
+
+	// Played 100,000 times too fast, every scan after the first is a period late: with
+	// --drop-late they are skipped and counted; without, processed and counted late.
+	r = test::runCommand(test::bin("rasterslam") + " run --config tracking --rawlog " + paced +
+	                     " --realtime --rate 100000 --drop-late --out " + (dir / "c").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	y = runYaml(dir / "c");
+	EXPECT_EQ(y["counts"]["scans"].as<int>(), 1);
+	EXPECT_EQ(y["counts"]["dropped_late"].as<int>(), 10);
+	EXPECT_EQ(lineCount(dir / "c" / "trajectory.kitti"), 1u);
+	r = test::runCommand(test::bin("rasterslam") + " run --config tracking --rawlog " + paced +
+	                     " --realtime --rate 100000 --out " + (dir / "d").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	y = runYaml(dir / "d");
+	EXPECT_EQ(y["counts"]["scans"].as<int>(), 11);
+	EXPECT_EQ(y["counts"]["late"].as<int>(), 10);
+	EXPECT_EQ(y["counts"]["dropped_late"].as<int>(), 0);
+}
+
+TEST(EndToEnd, TimeStampsThatGoBackOrStandStillAreNamed)
+{
+	const test::ScopedTempDir dir("e2e-stamps");
+	const auto rawlog = stampedRawlog(dir.path(), "disorder", {5, 5.1, 5.1, 5.05, 5.3});
+	auto r = test::runCommand(test::bin("rasterslam") + " run --config tracking --rawlog " +
+	                          rawlog + " --out " + (dir / "a").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_EQ(runYaml(dir / "a")["counts"]["stamps_out_of_order"].as<int>(), 2);
+	EXPECT_NE(r.output.find("scan #2 (t=5.100000): its time stamp stands still at the previous "
+	                        "scan's (t=5.100000)"),
+	          std::string::npos)
+	    << r.output;
+	EXPECT_NE(r.output.find("2 scans have a time stamp that does not increase"), std::string::npos)
+	    << r.output;
+	// engine.stamp_order: error ends the run at the first, the scans before written.
+	std::ofstream(dir / "strict.yaml") << "plugins: [librasterslam_plugin_elevation_rasterizer.so, "
+	                                      "librasterslam_plugin_orb_odometry.so]\n"
+	                                      "rasterizer: {class: rasterslam::ElevationRasterizer}\n"
+	                                      "odometry: {class: rasterslam::OrbOdometry}\n"
+	                                      "engine: {stamp_order: error}\n";
+	r = test::runCommand(test::bin("rasterslam") + " run --config " +
+	                     (dir / "strict.yaml").string() + " --rawlog " + rawlog + " --out " +
+	                     (dir / "b").string());
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_NE(r.output.find("scan #2 (t=5.100000): its time stamp stands still"), std::string::npos)
+	    << r.output;
+	EXPECT_NE(r.output.find("engine.stamp_order: error"), std::string::npos) << r.output;
+	EXPECT_EQ(lineCount(dir / "b" / "trajectory.kitti"), 2u);
 }
 
 TEST(EndToEnd, MissingOrDamagedRawlog)

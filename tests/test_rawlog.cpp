@@ -327,6 +327,47 @@ TEST(Rawlog, TruncatedFileStopsAtTheDamageWithItsOffset)
 	}
 }
 
+TEST(Rawlog, ProgressIsTheShareOfTheFileReadGzipOrPlain)
+{
+	const test::ScopedTempDir dir("rawlog-progress");
+	std::mt19937 rng(2);
+	std::uniform_real_distribution<float> u(-30, 30);
+	for (const int level : {0, 1})
+	{
+		SCOPED_TRACE("level " + std::to_string(level));
+		const auto path = (dir / ("p" + std::to_string(level) + ".rawlog")).string();
+		{
+			io::RawlogWriter w(path, level);
+			for (int k = 0; k < 120; k++)
+			{
+				Scan s;
+				s.stamp = 1 + 0.1 * k;
+				for (int i = 0; i < 5000; i++)
+					s.points.push_back({u(rng), u(rng), u(rng), 0});
+				w.writeScan(s);
+			}
+			w.close();
+		}
+		io::RawlogSource src(path);
+		double last = 0;
+		std::vector<double> seen;
+		while (src.next())
+		{
+			const double p = src.progress();
+			EXPECT_GE(p, last);
+			EXPECT_LE(p, 1.0);
+			seen.push_back(p);
+			last = p;
+		}
+		ASSERT_EQ(seen.size(), 120u);
+		// About proportional to the scans read (equal scans), read-ahead aside (a scan or two
+		// and zlib's 256 kB buffer).
+		EXPECT_NEAR(seen[59], 0.5, 0.08);
+		EXPECT_NEAR(seen[29], 0.25, 0.08);
+		EXPECT_NEAR(src.progress(), 1.0, 1e-9);
+	}
+}
+
 TEST(Rawlog, BadFilesThrowNamingTheFile)
 {
 	const auto dir = test::tempDir("rawlog");

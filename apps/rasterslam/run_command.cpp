@@ -152,7 +152,7 @@ struct RunArgs
 {
 	std::string rawlog, outDir, configPath, sensor, mapOut, mapIn;
 	std::optional<std::size_t> first, last;
-	bool realtime = false;
+	bool realtime = false, dropLate = false;
 	double rate = 1;
 	bool quiet = false, verbose = false, saveImages = false, overwrite = false,
 	     requireLocalization = false;
@@ -189,6 +189,10 @@ Command addRunCommand(CLI::App& app)
 	    ->needs(rt)
 	    ->type_name("R")
 	    ->capture_default_str();
+	sub->add_flag("--drop-late", a->dropLate,
+	              "with --realtime: skip a scan whose processing could only start a whole period "
+	              "(the step from the previous stamp) after its time; counted in run.yaml")
+	    ->needs(rt);
 	sub->add_option("--sensor", a->sensor, "use only scans with this sensor label")
 	    ->type_name("LABEL");
 	sub->add_flag("--save-images", a->saveImages,
@@ -233,6 +237,7 @@ int runCommand(const RunArgs& args)
 	opts.last = args.last;
 	opts.realtime = args.realtime;
 	opts.rate = args.rate;
+	opts.dropLate = args.dropLate;
 
 	const auto logLevel = verbose ? mrpt::system::LVL_DEBUG
 	                              : (quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
@@ -349,6 +354,7 @@ int runCommand(const RunArgs& args)
 	input["sensor"] = sensor;
 	input["realtime"] = opts.realtime;
 	input["rate"] = opts.rate;
+	input["drop_late"] = opts.dropLate;
 	input["config"] = fs::absolute(configPath).string();
 	info["input"] = input;
 	info["config"] = engine->configInForce();
@@ -357,6 +363,8 @@ int runCommand(const RunArgs& args)
 	counts["keyframes"] = static_cast<uint64_t>(res.keyframes);
 	counts["lost"] = static_cast<uint64_t>(res.lost);
 	counts["late"] = static_cast<uint64_t>(res.late);
+	counts["dropped_late"] = static_cast<uint64_t>(res.droppedLate);
+	counts["stamps_out_of_order"] = static_cast<uint64_t>(res.stampsOutOfOrder);
 	counts["loop_edges"] = static_cast<uint64_t>(res.loopEdges);
 	counts["rawlog_odometry_edges"] = static_cast<uint64_t>(res.odometryEdges);
 	counts["relocalized"] = static_cast<uint64_t>(res.relocalized);
@@ -476,8 +484,13 @@ int runCommand(const RunArgs& args)
 	    "rasterslam: %zu scans, %zu keyframes, %zu lost%s in %.1f s: %.1f ms/scan median, "
 	    "%.1f p95 (%.1f scans/s), peak memory %.0f MB\n",
 	    res.scans.size(), res.keyframes, res.lost,
-	    opts.realtime ? mrpt::format(", %zu late", res.late).c_str() : "", res.wall_s,
-	    percentile(total, 0.5), percentile(total, 0.95),
+	    opts.realtime
+	        ? mrpt::format(
+	              ", %zu late%s", res.late,
+	              opts.dropLate ? mrpt::format(", %zu dropped late", res.droppedLate).c_str() : "")
+	              .c_str()
+	        : "",
+	    res.wall_s, percentile(total, 0.5), percentile(total, 0.95),
 	    res.wall_s > 0 ? res.scans.size() / res.wall_s : 0.0, peakRssMb());
 	if (ate)
 		std::printf(
@@ -487,6 +500,11 @@ int runCommand(const RunArgs& args)
 	if (opts.relocalizeFirstScan)
 		std::printf("rasterslam: %s in the prior map %s (%zu hits in earlier sessions)\n",
 		            res.localized ? "located" : "NOT located", mapIn.c_str(), res.anchorHits);
+	if (res.stampsOutOfOrder > 0)
+		std::fprintf(stderr,
+		             "rasterslam: warning: %zu scans have a time stamp that does not increase "
+		             "(engine.stamp_order: error makes that an error)\n",
+		             res.stampsOutOfOrder);
 	if (!res.stopReason.empty())
 		std::fprintf(
 		    stderr,

@@ -171,6 +171,8 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		anchorAgree_deg_ = p.getDouble("anchor_agree_deg", anchorAgree_deg_);
 		anchorEveryScan_ = p.getBool("anchor_every_scan", anchorEveryScan_);
 		anchorHitSpacing_s_ = p.getDouble("anchor_hit_spacing_s", anchorHitSpacing_s_);
+		stampOrderError_ = p.getChoice("stamp_order", "warn", {"warn", "error"}) == "error";
+		realtimeMaxWait_s_ = p.getDouble("realtime_max_wait_s", realtimeMaxWait_s_);
 		p.finish();
 		p.requireAtLeast(minPoints_, 1, "min_points");
 		p.requirePositive(rawlogOdoSigma_m_, "rawlog_odometry_sigma_m");
@@ -181,6 +183,7 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		p.requirePositive(anchorAgree_m_, "anchor_agree_m");
 		p.requirePositive(anchorAgree_deg_, "anchor_agree_deg");
 		p.requireAtLeast(anchorHitSpacing_s_, 0, "anchor_hit_spacing_s");
+		p.requirePositive(realtimeMaxWait_s_, "realtime_max_wait_s");
 		inForce_["engine"] = p.inForce();
 	}
 	rasterizer_ = std::dynamic_pointer_cast<Rasterizer>(
@@ -302,6 +305,9 @@ struct Engine::RunState
 	std::size_t currentIndex = 0;
 	double readMs = 0;  //!< reading the current scan
 	std::optional<double> firstStamp;
+	std::optional<double> lastStamp;          //!< of the last admitted scan
+	std::optional<double> lastPacedStamp;     //!< of the last scan paced (--realtime)
+	std::optional<Clock::time_point> clock0;  //!< --realtime: when the first scan was due
 	// The input's own odometry composed since the last keyframe (paper: visual odometry
 	// factors fused into the graph; here any odometry the rawlog carries).
 	std::optional<mrpt::poses::CPose3DPDFGaussian> odoSinceKf;
@@ -363,7 +369,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 				continue;
 			}
 			ScanRecord rec = beginScan(s, *scan);
-			pace(s, *scan, rec);
+			if (!pace(s, *scan, rec))
+				continue;
 			const auto tScan = Clock::now();
 			const RasterFrame* raster = rasterize(s, *scan, rec);
 			const OdometryResult odo = track(s, *scan, raster, rec);
@@ -443,7 +450,7 @@ bool Engine::admitScan(RunState& s, Scan& scan)
 	}
 	if ((nonFinite == 0 || dropNonFinite_) &&
 	    scan.points.size() >= static_cast<std::size_t>(minPoints_))
-		return true;
+		return stampInOrder(s, scan);
 	const std::string what =
 	    nonFinite > 0 && !dropNonFinite_
 	        ? mrpt::format(
@@ -490,25 +497,71 @@ ScanRecord Engine::beginScan(RunState& s, const Scan& scan)
 	return rec;
 }
 
-void Engine::pace(RunState& s, const Scan& scan, ScanRecord& rec)
+bool Engine::stampInOrder(RunState& s, const Scan& scan)
+{
+	const std::optional<double> previous = s.lastStamp;
+	s.lastStamp = scan.stamp;
+	if (!previous || scan.stamp > *previous)
+		return true;
+	++s.res.stampsOutOfOrder;
+	const std::string what =
+	    mrpt::format("%s: scan #%zu (t=%.6f): its time stamp %s the previous scan's (t=%.6f)",
+	                 s.source.name().c_str(), scan.index, scan.stamp,
+	                 scan.stamp < *previous ? "goes back from" : "stands still at", *previous);
+	if (stampOrderError_)
+	{
+		s.res.error = what + " (engine.stamp_order: error)";
+		return false;
+	}
+	MRPT_LOG_THROTTLE_WARN_STREAM(5.0, what << "; " << s.res.stampsOutOfOrder
+	                                        << " such scans so far (engine.stamp_order: error "
+	                                           "stops the run at the first)");
+	return true;
+}
+
+bool Engine::pace(RunState& s, const Scan& scan, ScanRecord& rec)
 {
 	if (!s.opts.realtime)
-		return;
-	const double due_s = (scan.stamp - *s.firstStamp) / std::max(s.opts.rate, 1e-6);
-	const auto due =
-	    s.wall0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(due_s));
-	if (Clock::now() < due)
+		return true;
+	// The clock starts at the first scan: the time spent loading before it does not count.
+	const auto now = Clock::now();
+	if (!s.clock0)
+		s.clock0 = now;
+	const double rate = std::max(s.opts.rate, 1e-6);
+	const double due_s = (scan.stamp - *s.firstStamp) / rate;
+	const auto due = *s.clock0 + std::chrono::duration_cast<Clock::duration>(
+	                                 std::chrono::duration<double>(due_s));
+	const std::optional<double> previous = s.lastPacedStamp;
+	s.lastPacedStamp = scan.stamp;
+	if (now < due)
 	{
+		const double wait_s = std::chrono::duration<double>(due - now).count();
+		if (wait_s > realtimeMaxWait_s_)
+			MRPT_LOG_WARN_FMT(
+			    "scan #%zu (t=%.6f): waiting %.1f s for its time stamp: a gap in the "
+			    "input (engine.realtime_max_wait_s = %.1f)",
+			    scan.index, scan.stamp, wait_s, realtimeMaxWait_s_);
 		// In steps, so that a stop request (Ctrl-C) is not held up by a long gap in the stamps.
 		while (Clock::now() < due && !(s.opts.stop && s.opts.stop->load() != 0))
 			std::this_thread::sleep_until(
 			    std::min(due, Clock::now() + std::chrono::milliseconds(100)));
+		return true;
 	}
-	else if (std::chrono::duration<double>(Clock::now() - due).count() > 1e-3)
+	const double late_s = std::chrono::duration<double>(now - due).count();
+	if (late_s <= 1e-3)
+		return true;
+	// A scan already a whole period late (the step from the previous stamp) is dropped with
+	// --drop-late: the run then keeps up with the input instead of falling behind for good.
+	const double period_s =
+	    previous && scan.stamp > *previous ? (scan.stamp - *previous) / rate : 0;
+	if (s.opts.dropLate && period_s > 0 && late_s > period_s)
 	{
-		rec.late = true;
-		++s.res.late;
+		++s.res.droppedLate;
+		return false;
 	}
+	rec.late = true;
+	++s.res.late;
+	return true;
 }
 
 const RasterFrame* Engine::rasterize(RunState& s, const Scan& scan, ScanRecord& rec)

@@ -1,4 +1,4 @@
-#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CStream.h>
 #include <mrpt/maps/CPointsMapXYZI.h>
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/maps/registerAllClasses.h>
@@ -16,6 +16,7 @@
 #include <mrpt/poses/CPosePDFGaussian.h>
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/io/rawlog_source.h>
+#include <zlib.h>
 
 #include <cmath>
 #include <filesystem>
@@ -28,32 +29,70 @@ namespace rasterslam::io
 {
 namespace
 {
-/** Forwards reads to the file and counts the (uncompressed) bytes consumed, so that a
- *  damaged object can be reported by its offset and a clean end told from a cut one. */
-class CountingStream : public mrpt::io::CStream
+/** Reads a rawlog, gzip or plain (zlib reads both), counting the uncompressed bytes consumed
+ *  so that a damaged object can be reported by its offset and a clean end told from a cut one.
+ *  It also knows its position in the file itself (gzoffset) for the progress, right for files
+ *  of any size (gzip's own size field is the size modulo 4 GiB). */
+class RawlogStream : public mrpt::io::CStream
 {
    public:
-	explicit CountingStream(mrpt::io::CFileGZInputStream& in) : in_(in) {}
+	explicit RawlogStream(const std::string& path) : path_(path)
+	{
+		f_ = ::gzopen(path.c_str(), "rb");
+		if (f_)
+			::gzbuffer(f_, 1 << 18);
+	}
+	~RawlogStream() override
+	{
+		if (f_)
+			::gzclose(f_);
+	}
+	RawlogStream(const RawlogStream&) = delete;
+	RawlogStream& operator=(const RawlogStream&) = delete;
+	bool isOpen() const { return f_ != nullptr; }
 	size_t Read(void* buf, size_t n) override
 	{
-		const size_t r = in_.Read(buf, n);
-		count_ += r;
-		return r;
+		size_t done = 0;
+		while (done < n)
+		{
+			const auto want = static_cast<unsigned>(std::min<size_t>(n - done, 1u << 30));
+			const int r = ::gzread(f_, static_cast<char*>(buf) + done, want);
+			if (r < 0)
+			{
+				int code = 0;
+				const char* msg = ::gzerror(f_, &code);
+				throw std::runtime_error(std::string("gzip data error: ") +
+				                         (msg ? msg : "unknown"));
+			}
+			if (r == 0)
+				break;
+			done += static_cast<size_t>(r);
+		}
+		count_ += done;
+		return done;
 	}
 	size_t Write(const void*, size_t) override
 	{
-		throw std::logic_error("CountingStream is read-only");
+		throw std::logic_error("RawlogStream is read-only");
 	}
 	uint64_t Seek(int64_t, TSeekOrigin) override
 	{
-		throw std::logic_error("CountingStream cannot seek");
+		throw std::logic_error("RawlogStream cannot seek");
 	}
-	uint64_t getTotalBytesCount() const override { return in_.getTotalBytesCount(); }
+	uint64_t getTotalBytesCount() const override { return 0; }
 	uint64_t getPosition() const override { return count_; }
+	/** Uncompressed bytes consumed. */
 	uint64_t count() const { return count_; }
+	/** Bytes of the file consumed (compressed, for gzip). */
+	uint64_t fileOffset() const
+	{
+		const auto o = ::gzoffset(f_);
+		return o > 0 ? static_cast<uint64_t>(o) : 0;
+	}
 
    private:
-	mrpt::io::CFileGZInputStream& in_;
+	std::string path_;
+	gzFile f_ = nullptr;
 	uint64_t count_ = 0;
 };
 
@@ -215,30 +254,9 @@ bool observationToPoints(const mrpt::obs::CObservation& o, std::vector<PointXYZI
 
 struct RawlogSource::Impl
 {
-	mrpt::io::CFileGZInputStream file;
-	std::unique_ptr<CountingStream> counting;
+	std::unique_ptr<RawlogStream> counting;
 	uint64_t fileSize = 0;
-	/** Uncompressed size modulo 2^32 from the gzip trailer (ISIZE), when gzip. */
-	std::optional<uint32_t> gzipIsize;
 };
-
-namespace
-{
-/** Reads the gzip magic and, for a single-member gzip file, its trailer's ISIZE field. */
-std::optional<uint32_t> gzipTrailerSize(const std::string& path, uint64_t size)
-{
-	std::ifstream f(path, std::ios::binary);
-	unsigned char magic[2] = {0, 0};
-	if (size < 18 || !f.read(reinterpret_cast<char*>(magic), 2) || magic[0] != 0x1f ||
-	    magic[1] != 0x8b)
-		return std::nullopt;
-	unsigned char t[4];
-	f.seekg(static_cast<std::streamoff>(size - 4));
-	if (!f.read(reinterpret_cast<char*>(t), 4))
-		return std::nullopt;
-	return uint32_t(t[0]) | uint32_t(t[1]) << 8 | uint32_t(t[2]) << 16 | uint32_t(t[3]) << 24;
-}
-}  // namespace
 
 RawlogSource::RawlogSource(const std::string& path, RawlogSourceOptions opts)
     : impl_(std::make_unique<Impl>()), path_(path), opts_(std::move(opts))
@@ -249,30 +267,21 @@ RawlogSource::RawlogSource(const std::string& path, RawlogSourceOptions opts)
 		throw std::runtime_error("cannot open rawlog '" + path + "': no such file");
 	if (std::filesystem::is_directory(path, ec))
 		throw std::runtime_error("cannot open rawlog '" + path + "': it is a directory");
-	if (!std::ifstream(path).good() || !impl_->file.open(path))
+	impl_->counting = std::make_unique<RawlogStream>(path);
+	if (!std::ifstream(path).good() || !impl_->counting->isOpen())
 		throw std::runtime_error("cannot open rawlog '" + path + "': not readable");
-	impl_->counting = std::make_unique<CountingStream>(impl_->file);
 	impl_->fileSize = std::filesystem::file_size(path, ec);
-	impl_->gzipIsize = gzipTrailerSize(path, impl_->fileSize);
 }
 
 RawlogSource::~RawlogSource() = default;
 
 double RawlogSource::progress() const
 {
-	// Progress in uncompressed bytes: for gzip the total is ISIZE (size mod 2^32) plus the
-	// multiple of 2^32 that makes it at least the compressed size and the bytes already read.
-	const uint64_t done = impl_->counting->count();
-	uint64_t total = impl_->fileSize;
-	if (impl_->gzipIsize)
-	{
-		total = *impl_->gzipIsize;
-		while (total < impl_->fileSize || total < done)
-			total += (uint64_t(1) << 32);
-	}
-	if (total == 0)
+	// The share of the file read (compressed bytes for gzip): right whatever its size.
+	if (impl_->fileSize == 0)
 		return -1;
-	return std::min(1.0, static_cast<double>(done) / static_cast<double>(total));
+	return std::min(1.0, static_cast<double>(impl_->counting->fileOffset()) /
+	                         static_cast<double>(impl_->fileSize));
 }
 
 void RawlogSource::attachGroundTruth(int64_t ticks, const mrpt::poses::CPose3D& pose)

@@ -49,6 +49,9 @@ struct RunOptions
 	/** Play scans at their time stamps (scaled by `rate`) instead of as fast as possible. */
 	bool realtime = false;
 	double rate = 1.0;
+	/** With realtime: a scan whose processing could only start a whole period (the step from
+	 *  the previous stamp) after its due time is skipped (counted in RunResult::droppedLate). */
+	bool dropLate = false;
 	/** Locate the run in the loop detector's loaded map (--map-in): every keyframe is
 	 *  relocalized until one is found, then all poses move into the map's frame. */
 	bool relocalizeFirstScan = false;
@@ -69,7 +72,9 @@ struct RunResult
 	std::vector<mrpt::poses::CPose3D> poses;
 	mrpt::graphs::CNetworkOfPoses3DInf graph;
 	std::size_t keyframes = 0, lost = 0, late = 0, loopEdges = 0, skippedBadScans = 0;
-	std::size_t odometryEdges = 0;  //!< edges from the input's own odometry
+	std::size_t droppedLate = 0;       //!< scans skipped by RunOptions::dropLate
+	std::size_t stampsOutOfOrder = 0;  //!< scans whose stamp did not increase
+	std::size_t odometryEdges = 0;     //!< edges from the input's own odometry
 	std::size_t relocalized = 0, relocalizationFailures = 0;
 	std::size_t loopsToPriorMap = 0;    //!< loops found to a --map-in map's keyframes
 	std::size_t priorMapLoopEdges = 0;  //!< of those, made graph edges (after the anchoring)
@@ -190,8 +195,12 @@ class Engine : public mrpt::system::COutputLogger
 	bool admitScan(RunState& s, Scan& scan);
 	/** The scan's record; the session's record on the first scan. */
 	ScanRecord beginScan(RunState& s, const Scan& scan);
-	/** --realtime: waits for the scan's time; counts it late when past it. */
-	void pace(RunState& s, const Scan& scan, ScanRecord& rec);
+	/** Time stamps must increase: a warning (or the error that ends the run, with
+	 *  engine.stamp_order: error) naming the scan when one goes back or stands still. */
+	bool stampInOrder(RunState& s, const Scan& scan);
+	/** --realtime: waits for the scan's time (from the first scan's) and counts it late when
+	 *  past it; false for a scan to drop (RunOptions::dropLate, a whole period late). */
+	bool pace(RunState& s, const Scan& scan, ScanRecord& rec);
 	/** The elevation image (null without a rasterizer). */
 	const RasterFrame* rasterize(RunState& s, const Scan& scan, ScanRecord& rec);
 	/** Odometry: the scan's pose from the last keyframe's (as the back end has it now). */
@@ -244,6 +253,8 @@ class Engine : public mrpt::system::COutputLogger
 	double anchorAgree_m_ = 2.0, anchorAgree_deg_ = 5.0;
 	bool anchorEveryScan_ = true;
 	double anchorHitSpacing_s_ = 1.0;
+	bool stampOrderError_ = false;
+	double realtimeMaxWait_s_ = 5.0;
 };
 
 /** Resident set size high-water mark of this process, MB (from /proc/self/status). */
