@@ -58,23 +58,20 @@ std::string syntheticRawlog(const fs::path& dir, const std::string& bad)
 	return path;
 }
 
-/** The first 50 KITTI scans as a rawlog, made once for the whole test program. */
+/** The first 50 KITTI scans as a rawlog, made once a ctest run (sharedTestInput). */
 std::string kitti50()
 {
-	static const std::string path = []
-	{
-		const auto D = test::sharedData("kitti00-0000-0100");
-		const auto p = (fs::temp_directory_path() /
-		                ("rasterslam-e2e-kitti50-" + std::to_string(::getpid()) + ".rawlog"))
-		                   .string();
-		test::removeAtExit(p);
-		const auto r =
-		    test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " +
-		                     D + "/poses_semantickitti.txt --calib " + D + "/calib.txt --times " +
-		                     D + "/times.txt --last 49 -o " + p);
-		EXPECT_EQ(r.exitCode, 0) << r.output;
-		return p;
-	}();
+	static const std::string path = test::sharedTestInput(
+	    "kitti00-0049.rawlog",
+	    [](const std::string& p)
+	    {
+		    const auto D = test::sharedData("kitti00-0000-0100");
+		    const auto r =
+		        test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D +
+		                         "/velodyne --poses " + D + "/poses_semantickitti.txt --calib " +
+		                         D + "/calib.txt --times " + D + "/times.txt --last 49 -o " + p);
+		    EXPECT_EQ(r.exitCode, 0) << r.output;
+	    });
 	return path;
 }
 }  // namespace

@@ -20,20 +20,18 @@ using test::jsonNumber;
 namespace
 {
 
-/** The simulated rawlog, made once per test program. */
+/** The simulated VLP-16 drive, made once a ctest run (test_support.h, sharedTestInput). */
 std::string vlp16Rawlog()
 {
-	static const std::string path = []
-	{
-		const auto p = (fs::temp_directory_path() /
-		                ("rasterslam-loop-vlp16-" + std::to_string(::getpid()) + ".rawlog"))
-		                   .string();
-		test::removeAtExit(p);
-		const auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
-		                                test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
-		EXPECT_EQ(r.exitCode, 0) << r.output;
-		return p;
-	}();
+	static const std::string path = test::sharedTestInput(
+	    "town-vlp16.rawlog",
+	    [](const std::string& p)
+	    {
+		    const auto r =
+		        test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+		                         test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
+		    EXPECT_EQ(r.exitCode, 0) << r.output;
+	    });
 	return path;
 }
 }  // namespace

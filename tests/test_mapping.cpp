@@ -32,15 +32,15 @@ namespace
 /** The simulated rawlog, made once per test program and removed at its exit. */
 const std::string& vlp16Rawlog()
 {
-	static const test::ScopedTempDir dir("mapping-rawlog");
-	static const std::string path = []
-	{
-		const auto p = (dir / "vlp16.rawlog").string();
-		const auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
-		                                test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
-		EXPECT_EQ(r.exitCode, 0) << r.output;
-		return p;
-	}();
+	static const std::string path = test::sharedTestInput(
+	    "town-vlp16.rawlog",
+	    [](const std::string& p)
+	    {
+		    const auto r =
+		        test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+		                         test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
+		    EXPECT_EQ(r.exitCode, 0) << r.output;
+	    });
 	return path;
 }
 

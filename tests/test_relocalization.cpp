@@ -153,17 +153,19 @@ const std::vector<Scan>& vlp16Scans()
 {
 	static const std::vector<Scan> scans = []
 	{
-		const auto p = (fs::temp_directory_path() /
-		                ("rasterslam-reloc-vlp16-" + std::to_string(::getpid()) + ".rawlog"))
-		                   .string();
-		const auto r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
-		                                test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
-		EXPECT_EQ(r.exitCode, 0) << r.output;
+		const auto p = test::sharedTestInput(
+		    "town-vlp16.rawlog",
+		    [](const std::string& path)
+		    {
+			    const auto r =
+			        test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+			                         test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + path);
+			    EXPECT_EQ(r.exitCode, 0) << r.output;
+		    });
 		std::vector<Scan> v;
 		io::RawlogSource src(p);
 		while (auto s = src.next())
 			v.push_back(std::move(*s));
-		fs::remove(p);
 		return v;
 	}();
 	return scans;

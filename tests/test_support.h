@@ -71,6 +71,24 @@ inline std::filesystem::path tempDir(const std::string& tag)
 	return p;
 }
 
+/** An input several test programs share: made once a ctest run into the build tree by the
+ *  fixture TestData.Make (tests/fixtures/make-test-data.cmake). When it is not there (a test
+ *  program run by hand), `make(path)` makes it into a temporary folder of this program,
+ *  removed when it ends. */
+template <typename Make>
+std::string sharedTestInput(const std::string& name, Make&& make)
+{
+	const auto made = std::filesystem::path(RASTERSLAM_TEST_DATA_DIR) / name;
+	std::error_code ec;
+	if (std::filesystem::is_regular_file(made, ec))
+		return made.string();
+	const auto p = std::filesystem::temp_directory_path() /
+	               ("rasterslam-test-input-" + std::to_string(::getpid()) + "-" + name);
+	removeAtExit(p);
+	make(p.string());
+	return p.string();
+}
+
 /** A fresh folder (see tempDir) removed with everything in it when the object goes out of
  *  scope, also when the test fails. */
 class ScopedTempDir
