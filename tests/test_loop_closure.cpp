@@ -60,11 +60,11 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	const auto j = nlohmann::json::parse(e.output, nullptr, false);
 	ASSERT_TRUE(j.is_object() && j.contains("detector")) << e.output;
 	const std::string det = j["detector"].dump();
-	// Measured: precision 1, recall 0.43-0.82 (3 of 7 to 9 of 11 revisiting keyframes, with
-	// the odometry settings of the day): a place found at all, and never a wrong one.
+	// The README's figures (scripts/benchmark-loops.sh, town-vlp16, bow): precision 1, recall
+	// 0.571 (4 of 7 revisiting keyframes). One revisit fewer (3 of 7) fails.
 	EXPECT_EQ(jsonNumber(det, "fp"), 0) << det;
-	EXPECT_GE(jsonNumber(det, "tp"), 2) << det;
-	EXPECT_GE(jsonNumber(det, "recall"), 0.4) << det;
+	EXPECT_GE(jsonNumber(det, "tp"), 4) << det;
+	EXPECT_GE(jsonNumber(det, "recall"), 0.57) << det;
 
 	// Each accepted loop's transform agrees with the ground truth, and none is found before
 	// the route could have revisited anything.
@@ -103,7 +103,8 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	}
 	EXPECT_GE(accepted, 2);
 
-	// Loop closure pays: measured ATE 0.40 m odometry only, 0.29 m optimized.
+	// Loop closure pays; the README states 0.575 m odometry only, 0.200 m optimized (0.35 of
+	// it): guarded with a margin.
 	auto ate = [&](const fs::path& out)
 	{
 		const auto r = test::runCommand(test::bin("rasterslam-eval") + " traj --gt " +
@@ -113,7 +114,19 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 		return jsonNumber(r.output, "ate_rmse_m");
 	};
 	const double odo = ate(dir / "odo"), slam = ate(dir / "slam");
-	EXPECT_LT(slam, 0.85 * odo) << "odometry " << odo << " m, with loops " << slam << " m";
+	EXPECT_LT(slam, 0.40 * odo) << "odometry " << odo << " m, with loops " << slam << " m";
+
+	// The same input gives the same loops and the same trajectory (batch mode is
+	// deterministic), on a drive that has loops.
+	runWith("slam.yaml", dir / "slam2");
+	for (const auto* file : {"loops.txt", "trajectory.kitti", "pose_graph.graph"})
+	{
+		std::ifstream fa(dir / "slam" / file), fb(dir / "slam2" / file);
+		const std::string a((std::istreambuf_iterator<char>(fa)), {}),
+		    b((std::istreambuf_iterator<char>(fb)), {});
+		EXPECT_FALSE(a.empty()) << file;
+		EXPECT_TRUE(a == b) << file << " differs between two runs";
+	}
 }
 
 TEST(LoopClosure, ConfigurationErrors)
