@@ -375,3 +375,28 @@ TEST(RasterslamCli, SigintOrSigtermWritesTheOutputsAndTheMapForWhatWasProcessed)
 	EXPECT_FALSE(fs::exists(stale));
 	EXPECT_TRUE(fs::exists(live));
 }
+
+TEST(RasterslamCli, AMapThatCannotBeWrittenIsAnErrorInRunYamlAndLeavesNoDebris)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	test::ScopedTempDir dir("cli-full");
+	const auto rawlog = kitti30(dir.path());
+	// A file size limit (100 kB, SIGXFSZ ignored) stands in for a full disk: the local maps
+	// (hundreds of kB) cannot be written, the trajectory and run.yaml can.
+	const auto r =
+	    test::runCommand("bash -c \"trap '' XFSZ; ulimit -f 200; " + test::bin("rasterslam") +
+	                     " run --rawlog " + rawlog + " --out " + (dir / "o").string() +
+	                     " --map-out " + (dir / "m").string() + " --quiet\"");
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	EXPECT_TRUE(contains(r.output, "rasterslam: error: saving the map: cannot write local map '" +
+	                                   (dir / "m" / "store").string()))
+	    << r.output;
+	EXPECT_FALSE(contains(r.output, "Call stack")) << r.output;
+	const auto info = loadYamlFile((dir / "o" / "run.yaml").string());
+	EXPECT_TRUE(contains(info["summary"]["error"].as<std::string>(), "saving the map")) << r.output;
+	EXPECT_EQ(lines(dir / "o" / "trajectory.tum"), 30u);
+	// No map, and no temporary file left.
+	EXPECT_FALSE(fs::exists(dir / "m" / "map.rsmap"));
+	for (const auto& e : fs::recursive_directory_iterator(dir / "m"))
+		EXPECT_FALSE(contains(e.path().filename().string(), ".tmp-")) << e.path();
+}

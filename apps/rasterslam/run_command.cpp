@@ -293,7 +293,7 @@ int runCommand(const RunArgs& args)
 	{
 		std::fprintf(stderr, "[rasterslam] config %s\n", configPath.c_str());
 		std::stringstream ss;
-		engine->configInForce().printAsYAML(ss);
+		ss << emitYaml(engine->configInForce());
 		if (verbose)
 			std::fprintf(stderr, "%s", ss.str().c_str());
 	}
@@ -462,7 +462,11 @@ int runCommand(const RunArgs& args)
 		catch (const std::exception& e)
 		{
 			if (runError.empty())
+			{
 				runError = std::string("saving the map: ") + e.what();
+				summary["error"] = runError;  // run.yaml records it
+				info["summary"] = summary;
+			}
 		}
 	}
 	bool wrote = false;

@@ -1,9 +1,11 @@
 #include <rasterslam/core/config.h>
+#include <yaml-cpp/emitter.h>
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/exceptions.h>
 #include <yaml-cpp/mark.h>
 #include <yaml-cpp/parser.h>
 
+#include <any>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -460,6 +462,69 @@ void ParamReader::finish() const
 		known += (known.empty() ? "" : ", ") + k;
 	throw ConfigError((source_.empty() ? "" : source_ + ": ") + "unknown key(s) in '" + context_ +
 	                  "': " + unknown + " (known: " + known + ")");
+}
+
+namespace
+{
+void emitNode(YAML::Emitter& out, const mrpt::containers::yaml::node_t& n)
+{
+	if (n.isNullNode())
+		out << YAML::Null;
+	else if (n.isMap())
+	{
+		out << YAML::BeginMap;
+		for (const auto& [k, v] : n.asMap())
+		{
+			out << YAML::Key;
+			emitNode(out, k);
+			out << YAML::Value;
+			emitNode(out, v);
+		}
+		out << YAML::EndMap;
+	}
+	else if (n.isSequence())
+	{
+		out << YAML::BeginSeq;
+		for (const auto& v : n.asSequence())
+			emitNode(out, v);
+		out << YAML::EndSeq;
+	}
+	else
+	{
+		const std::any& a = n.asScalar();
+		if (const auto* b = std::any_cast<bool>(&a))
+			out << *b;
+		else if (const auto* d = std::any_cast<double>(&a))
+			out << *d;
+		else if (const auto* f = std::any_cast<float>(&a))
+			out << *f;
+		else if (const auto* i = std::any_cast<int>(&a))
+			out << *i;
+		else if (const auto* u = std::any_cast<unsigned>(&a))
+			out << *u;
+		else if (const auto* l = std::any_cast<long>(&a))
+			out << *l;
+		else if (const auto* ul = std::any_cast<unsigned long>(&a))
+			out << *ul;
+		else if (const auto* ll = std::any_cast<long long>(&a))
+			out << *ll;
+		else if (const auto* ull = std::any_cast<unsigned long long>(&a))
+			out << *ull;
+		else
+			out << std::string(n.internalAsStr());  // strings (quoted where YAML needs it)
+	}
+}
+}  // namespace
+
+std::string emitYaml(const mrpt::containers::yaml& doc)
+{
+	YAML::Emitter out;
+	out.SetDoublePrecision(17);
+	out.SetFloatPrecision(9);
+	emitNode(out, doc.node());
+	if (!out.good())
+		throw std::runtime_error("cannot write YAML: " + out.GetLastError());
+	return std::string(out.c_str()) + "\n";
 }
 
 }  // namespace rasterslam

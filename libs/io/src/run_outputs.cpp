@@ -1,5 +1,6 @@
 #include <mrpt/core/format.h>
 #include <mrpt/poses/CPose3DQuat.h>
+#include <rasterslam/core/config.h>
 #include <rasterslam/io/run_outputs.h>
 #include <rasterslam/io/trajectory_io.h>
 #include <unistd.h>
@@ -90,9 +91,7 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 		files.emplace_back("loops.txt", txt);
 	}
 	{
-		std::stringstream ss;
-		runInfo.printAsYAML(ss);
-		files.emplace_back("run.yaml", ss.str());
+		files.emplace_back("run.yaml", emitYaml(runInfo));
 	}
 
 	const std::string suffix = ".tmp-" + std::to_string(::getpid());

@@ -7,6 +7,8 @@
 #include <rasterslam/map/local_map_store.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
@@ -78,7 +80,8 @@ void writeFile(const std::string& path, const Payload& payload)
 		{
 			std::error_code ec;
 			fs::remove(tmp, ec);
-			throw std::runtime_error("cannot write local map '" + path + "'");
+			throw std::runtime_error("cannot write local map '" + path +
+			                         "': " + std::strerror(errno) + " (disk full?)");
 		}
 	}
 	// On the disk before it is named: an index that survives a power cut must find it whole.

@@ -85,4 +85,8 @@ class ParamReader
 	mrpt::containers::yaml inForce_ = mrpt::containers::yaml::Map();
 };
 
+/** The YAML text of a document, strings quoted where YAML needs it (MRPT's printAsYAML does
+ *  not quote them: a value holding ": ", such as an error message, came out unreadable). */
+std::string emitYaml(const mrpt::containers::yaml& doc);
+
 }  // namespace rasterslam
