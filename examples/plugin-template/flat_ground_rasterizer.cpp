@@ -8,6 +8,7 @@
 #include <mrpt/core/initializer.h>
 #include <mrpt/img/CImage.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/map/registration.h>
 
 #include <algorithm>
 #include <cmath>
@@ -43,7 +44,7 @@ class FlatGroundRasterizer : public rasterslam::Rasterizer
 IMPLEMENTS_MRPT_OBJECT(FlatGroundRasterizer, rasterslam::Rasterizer, example)
 
 // Runs when the loader opens the module: the class becomes creatable by its name.
-MRPT_INITIALIZER(register_example_flat_ground_rasterizer)
+RASTERSLAM_REGISTER_CLASSES(register_example_flat_ground_rasterizer)
 {
 	mrpt::rtti::registerClass(CLASS_ID(example::FlatGroundRasterizer));
 }

@@ -21,11 +21,19 @@ using namespace rasterslam::bow;
 IMPLEMENTS_SERIALIZABLE(Vocabulary, mrpt::serialization::CSerializable, rasterslam::bow)
 IMPLEMENTS_SERIALIZABLE(Database, mrpt::serialization::CSerializable, rasterslam::bow)
 
-MRPT_INITIALIZER(register_rasterslam_bow_classes)
+// Registered from an ordinary static object of this file, after the runtime ids above (see
+// rasterslam/map/registration.h: MRPT_INITIALIZER's order is unspecified, clang runs it first).
+namespace
 {
-	mrpt::rtti::registerClass(CLASS_ID(rasterslam::bow::Vocabulary));
-	mrpt::rtti::registerClass(CLASS_ID(rasterslam::bow::Database));
-}
+struct RegisterBowClasses
+{
+	RegisterBowClasses()
+	{
+		mrpt::rtti::registerClass(CLASS_ID(rasterslam::bow::Vocabulary));
+		mrpt::rtti::registerClass(CLASS_ID(rasterslam::bow::Database));
+	}
+} registerBowClasses;
+}  // namespace
 
 void Vocabulary::train(const std::vector<std::vector<Descriptor>>& images, const TrainParams& p)
 {

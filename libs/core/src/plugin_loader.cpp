@@ -1,3 +1,4 @@
+#include <dlfcn.h>
 #include <mrpt/system/os.h>
 #include <rasterslam/core/plugin_loader.h>
 #include <unistd.h>
@@ -98,6 +99,11 @@ void PluginLoader::loadModule(const std::string& path)
 	std::string err;
 	if (!mrpt::system::loadPluginModule(abs, err))
 		throw std::runtime_error("cannot load plugin module '" + abs + "': " + err);
+	// Modules stay loaded for the life of the process (MRPT unloads them at exit, and the
+	// libraries they brought, such as glog under Ceres, with them: objects of theirs still
+	// alive then would point into unmapped code). A second reference with RTLD_NODELETE pins
+	// the module; it is already loaded, so this only marks it.
+	::dlopen(abs.c_str(), RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
 	mrpt::rtti::registerAllPendingClasses();
 	loaded_.push_back(abs);
 	for (const auto& n : registeredNames())

@@ -2,10 +2,16 @@
 #include <mrpt/serialization/CArchive.h>
 #include <mrpt/serialization/stl_serialization.h>
 #include <rasterslam/map/keyframe.h>
+#include <rasterslam/map/registration.h>
 
 using namespace rasterslam;
 
 IMPLEMENTS_SERIALIZABLE(Keyframe, mrpt::serialization::CSerializable, rasterslam)
+
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_keyframe)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::Keyframe));
+}
 
 uint8_t Keyframe::serializeGetVersion() const
 {

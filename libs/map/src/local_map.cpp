@@ -4,15 +4,15 @@
 #include <mrpt/serialization/stl_serialization.h>
 #include <rasterslam/map/keyframe.h>
 #include <rasterslam/map/local_map.h>
+#include <rasterslam/map/registration.h>
 
 using namespace rasterslam;
 
 IMPLEMENTS_SERIALIZABLE(LocalMap, mrpt::serialization::CSerializable, rasterslam)
 IMPLEMENTS_SERIALIZABLE(LocalMapGraph, mrpt::serialization::CSerializable, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_map_classes)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_map_classes)
 {
-	mrpt::rtti::registerClass(CLASS_ID(rasterslam::Keyframe));
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LocalMap));
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LocalMapGraph));
 }

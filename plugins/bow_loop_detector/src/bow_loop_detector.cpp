@@ -5,12 +5,13 @@
 #include "bow_loop_detector.h"
 
 #include <mrpt/io/CMemoryStream.h>
+#include <rasterslam/map/registration.h>
 
 using namespace rasterslam;
 
 IMPLEMENTS_MRPT_OBJECT(BowLoopDetector, LoopDetector, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_plugin_bow_loop_detector)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_bow_loop_detector)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::BowLoopDetector));
 }

@@ -3,6 +3,7 @@
 #include <ceres/rotation.h>
 #include <mrpt/core/initializer.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/map/registration.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -52,7 +53,7 @@ using namespace rasterslam;
 
 IMPLEMENTS_MRPT_OBJECT(CeresOptimizer, Optimizer, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_plugin_ceres)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_ceres)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::CeresOptimizer));
 }

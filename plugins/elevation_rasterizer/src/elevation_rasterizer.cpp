@@ -2,6 +2,7 @@
 // points into a greyscale elevation image (orthographic bird's-eye view or equation (1)).
 #include <mrpt/core/initializer.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/map/registration.h>
 #include <rasterslam/raster/elevation_image.h>
 #include <rasterslam/raster/ground_plane.h>
 
@@ -28,7 +29,7 @@ using namespace rasterslam;
 
 IMPLEMENTS_MRPT_OBJECT(ElevationRasterizer, Rasterizer, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_plugin_elevation_rasterizer)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_elevation_rasterizer)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::ElevationRasterizer));
 }

@@ -10,6 +10,7 @@
 #include <mrpt/math/CMatrixFixed.h>
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/map/registration.h>
 
 #include <chrono>
 #include <cmath>
@@ -57,7 +58,7 @@ using namespace rasterslam;
 
 IMPLEMENTS_MRPT_OBJECT(GicpOdometry, Odometry, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_plugin_gicp)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_gicp)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::GicpOdometry));
 }

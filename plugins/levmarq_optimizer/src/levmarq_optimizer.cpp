@@ -2,6 +2,7 @@
 #include <mrpt/core/initializer.h>
 #include <mrpt/graphslam/levmarq.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/map/registration.h>
 
 #include <chrono>
 
@@ -41,7 +42,7 @@ using namespace rasterslam;
 
 IMPLEMENTS_MRPT_OBJECT(LevMarqOptimizer, Optimizer, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_plugin_levmarq)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_levmarq)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LevMarqOptimizer));
 }

@@ -6,6 +6,7 @@
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/pose_conversions.h>
 #include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/map/registration.h>
 #include <rasterslam/mapping/local_ba.h>
 #include <rasterslam/raster/elevation_image.h>
 #include <unistd.h>
@@ -97,7 +98,7 @@ using namespace rasterslam;
 
 IMPLEMENTS_MRPT_OBJECT(LocalMapManager, MapManager, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_plugin_local_map_manager)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_local_map_manager)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::LocalMapManager));
 }

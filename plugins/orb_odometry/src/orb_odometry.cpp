@@ -6,6 +6,7 @@
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/rigid_ransac.h>
+#include <rasterslam/map/registration.h>
 #include <rasterslam/raster/elevation_image.h>
 
 #include <Eigen/Dense>
@@ -64,7 +65,7 @@ using namespace rasterslam;
 
 IMPLEMENTS_MRPT_OBJECT(OrbOdometry, Odometry, rasterslam)
 
-MRPT_INITIALIZER(register_rasterslam_plugin_orb_odometry)
+RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_orb_odometry)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::OrbOdometry));
 }
