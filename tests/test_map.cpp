@@ -107,6 +107,45 @@ TEST(MapModel, LocalMapRoundTripAndVersion)
 	EXPECT_ANY_THROW(roundTrip(bad2, b3));
 }
 
+TEST(MapModel, DamagedOnlineFlagIsRefusedNotUndefined)
+{
+	// Found by fuzz_map_store: a bool read from a damaged file held 33 (undefined behaviour).
+	std::mt19937 rng(6);
+	auto lm = makeLocalMap(3, {1, 2}, rng);
+	const auto bytesOf = [&](bool online)
+	{
+		lm->online = online;
+		mrpt::io::CMemoryStream buf;
+		mrpt::serialization::archiveFrom(buf) << *lm;
+		const auto* p = static_cast<const uint8_t*>(buf.getRawBufferData());
+		return std::vector<uint8_t>(p, p + buf.getTotalBytesCount());
+	};
+	const auto on = bytesOf(true), off = bytesOf(false);
+	ASSERT_EQ(on.size(), off.size());
+	std::size_t at = on.size();
+	for (std::size_t i = 0; i < on.size(); i++)
+		if (on[i] != off[i])
+		{
+			ASSERT_EQ(at, on.size()) << "one byte differs";
+			at = i;
+		}
+	ASSERT_LT(at, on.size());
+	auto bad = on;
+	bad[at] = 33;
+	mrpt::io::CMemoryStream in;
+	in.assignMemoryNotOwn(bad.data(), bad.size());
+	try
+	{
+		mrpt::serialization::archiveFrom(in).ReadObject();
+		ADD_FAILURE() << "no error";
+	}
+	catch (const std::exception& e)
+	{
+		EXPECT_NE(std::string(e.what()).find("online flag 33 is not 0 or 1"), std::string::npos)
+		    << e.what();
+	}
+}
+
 TEST(MapModel, LocalMapGraphRoundTripAndVersion)
 {
 	LocalMapGraph g;

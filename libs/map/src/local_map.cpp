@@ -34,10 +34,19 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	switch (version)
 	{
 		case 0:
-			in >> id >> session >> keyframes >> createdStamp >> updatedStamp >> online >> xyz >>
+		{
+			// The flag as its byte: a bool read from a damaged file could hold any value (found
+			// by fuzz_map_store: undefined behaviour when used).
+			uint8_t onlineByte = 0;
+			in >> id >> session >> keyframes >> createdStamp >> updatedStamp >> onlineByte >> xyz >>
 			    descriptors >> observers >> imagePng >> imageResolution_m >> imageExtent_m >>
 			    baTracks >> baInitialRms_m >> baFinalRms_m;
+			if (onlineByte > 1)
+				THROW_EXCEPTION(mrpt::format("rasterslam::LocalMap: online flag %u is not 0 or 1",
+				                             static_cast<unsigned>(onlineByte)));
+			online = onlineByte != 0;
 			break;
+		}
 		default:
 			MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
 	}
