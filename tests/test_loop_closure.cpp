@@ -20,19 +20,9 @@ using test::jsonNumber;
 namespace
 {
 
-/** The simulated VLP-16 drive, made once a ctest run (test_support.h, sharedTestInput). */
-std::string vlp16Rawlog()
+const std::string& vlp16Rawlog()
 {
-	static const std::string path = test::sharedTestInput(
-	    "town-vlp16.rawlog",
-	    [](const std::string& p)
-	    {
-		    const auto r =
-		        test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
-		                         test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
-		    EXPECT_EQ(r.exitCode, 0) << r.output;
-	    });
-	return path;
+	return test::townVlp16Rawlog();
 }
 }  // namespace
 

@@ -29,19 +29,9 @@ using test::jsonNumber;
 
 namespace
 {
-/** The simulated rawlog, made once per test program and removed at its exit. */
 const std::string& vlp16Rawlog()
 {
-	static const std::string path = test::sharedTestInput(
-	    "town-vlp16.rawlog",
-	    [](const std::string& p)
-	    {
-		    const auto r =
-		        test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
-		                         test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
-		    EXPECT_EQ(r.exitCode, 0) << r.output;
-	    });
-	return path;
+	return test::townVlp16Rawlog();
 }
 
 /** slam.yaml (the vocabulary path made absolute), local BA on or off, extra engine lines. */

@@ -153,15 +153,7 @@ const std::vector<Scan>& vlp16Scans()
 {
 	static const std::vector<Scan> scans = []
 	{
-		const auto p = test::sharedTestInput(
-		    "town-vlp16.rawlog",
-		    [](const std::string& path)
-		    {
-			    const auto r =
-			        test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
-			                         test::sourcePath("rawlogs/town-vlp16.yaml") + " -o " + path);
-			    EXPECT_EQ(r.exitCode, 0) << r.output;
-		    });
+		const auto& p = test::townVlp16Rawlog();
 		std::vector<Scan> v;
 		io::RawlogSource src(p);
 		while (auto s = src.next())

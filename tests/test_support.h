@@ -152,3 +152,21 @@ inline std::string sourcePath(const std::string& rel)
 }
 
 }  // namespace rasterslam::test
+
+namespace rasterslam::test
+{
+/** The simulated VLP-16 drive (rawlogs/town-vlp16.yaml), made once a ctest run
+ *  (sharedTestInput). */
+inline const std::string& townVlp16Rawlog()
+{
+	static const std::string path = sharedTestInput(
+	    "town-vlp16.rawlog",
+	    [](const std::string& p)
+	    {
+		    const auto r = runCommand(bin("rasterslam-sim") + " --scenario " +
+		                              sourcePath("rawlogs/town-vlp16.yaml") + " -o " + p);
+		    EXPECT_EQ(r.exitCode, 0) << r.output;
+	    });
+	return path;
+}
+}  // namespace rasterslam::test
