@@ -70,6 +70,30 @@ const char* kShipped[] = {"share/rasterslam/config/slam.yaml",
                           "share/rasterslam/config/gicp-baseline.yaml",
                           "examples/plugin-template/config/flat-ground.yaml"};
 
+/** The tree without comments or layout: null ~, scalars quoted, [seq], {key: value}. */
+std::string tree(const yaml::node_t& n)
+{
+	if (n.isNullNode())
+		return "~";
+	if (n.isScalar())
+		return "'" + n.as<std::string>() + "'";
+	std::string s;
+	if (n.isSequence())
+	{
+		for (const auto& e : n.asSequence())
+			s += (s.empty() ? "" : ", ") + tree(e);
+		return "[" + s + "]";
+	}
+	for (const auto& kv : n.asMap())
+		s += (s.empty() ? "" : ", ") + tree(kv.first) + ": " + tree(kv.second);
+	return "{" + s + "}";
+}
+
+std::string tree(const yaml& y)
+{
+	return tree(y.node());
+}
+
 std::string printed(const yaml& y)
 {
 	std::stringstream ss;
@@ -291,8 +315,10 @@ TEST(StrictConfig, ShippedConfigsLoadToTheSameValues)
 		const auto path = shipped(rel);
 		yaml strict;
 		ASSERT_EQ(configError([&] { strict = loadYamlFile(path); }), "") << path;
-		// The strict front end only checks: the values are MRPT's parse of the same text.
-		EXPECT_EQ(printed(strict), printed(yaml::FromText(readText(path)))) << path;
+		// The tree is built from yaml-cpp's parse: the same as MRPT's parse of the same text
+		// (comments are not kept).
+		EXPECT_EQ(tree(strict), tree(yaml::FromText(readText(path)))) << path;
+		EXPECT_EQ(printed(strict).find('#'), std::string::npos) << path;
 		// The example's rasterizer is built out of tree (tests/sdk runs it).
 		if (std::string(rel).rfind("share/", 0) != 0)
 			continue;
@@ -310,6 +336,54 @@ TEST(StrictConfig, ShippedConfigsLoadToTheSameValues)
 		    << ss.str();
 		EXPECT_EQ(printed(engine2->configInForce()), ss.str()) << path;
 	}
+}
+
+TEST(StrictConfig, TreeMatchesMrptParserOnEveryForm)
+{
+	// Block and flow maps and sequences, quoted and plain scalars, numbers in every notation,
+	// nulls, comments, nesting: loadYamlFile builds the tree MRPT's parser builds.
+	const std::string text =
+	    "# a comment\n"
+	    "engine: {max_scans: 10, quiet: true}   # flow map\n"
+	    "odometry:\n"
+	    "  class: rasterslam::OrbOdometry\n"
+	    "  params:\n"
+	    "    a: 1.5e-3\n"
+	    "    b: -7\n"
+	    "    c: [1, 2.5, x]\n"
+	    "    d: 'quoted: yes'\n"
+	    "    e: \"double \\\"q\\\"\"\n"
+	    "    f: ~\n"
+	    "    g: null\n"
+	    "    h:\n"
+	    "      - {k: 1}\n"
+	    "      - [2, 3]\n"
+	    "      - plain text\n"
+	    "    i: .inf\n"
+	    "    j: 0x1F\n";
+	test::ScopedTempDir dir("config");
+	const auto path = write(dir / "forms.yaml", text);
+	yaml y;
+	ASSERT_EQ(configError([&] { y = loadYamlFile(path); }), "");
+	EXPECT_EQ(tree(y), tree(yaml::FromText(text)));
+	const auto& p = y["odometry"]["params"];
+	EXPECT_DOUBLE_EQ(p["a"].as<double>(), 1.5e-3);
+	EXPECT_EQ(p["b"].as<int>(), -7);
+	EXPECT_EQ(p["c"].asSequence().size(), 3u);
+	EXPECT_EQ(p["d"].as<std::string>(), "quoted: yes");
+	EXPECT_EQ(p["e"].as<std::string>(), "double \"q\"");
+	EXPECT_TRUE(p["f"].isNullNode());
+	EXPECT_TRUE(p["g"].isNullNode());
+	EXPECT_EQ(p["h"].asSequence().size(), 3u);
+	EXPECT_TRUE(y["engine"]["quiet"].as<bool>());
+	// A key with nothing after it is a null value (MRPT's parser throws "empty scalar").
+	const auto empty = write(dir / "empty.yaml", "engine:\n  max_scans:\n");
+	ASSERT_EQ(configError([&] { y = loadYamlFile(empty); }), "");
+	EXPECT_TRUE(y["engine"]["max_scans"].isNullNode());
+	// An empty file is not a map of sections.
+	const auto none = write(dir / "none.yaml", "# nothing\n");
+	EXPECT_NE(configError([&] { (void)loadYamlFile(none); }).find("expected a YAML map"),
+	          std::string::npos);
 }
 
 TEST(StrictConfig, ParamReaderRangeHelpers)

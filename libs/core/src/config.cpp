@@ -3,6 +3,11 @@
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/exceptions.h>
 #include <yaml-cpp/mark.h>
+#include <yaml-cpp/node/convert.h>
+#include <yaml-cpp/node/impl.h>
+#include <yaml-cpp/node/iterator.h>
+#include <yaml-cpp/node/node.h>
+#include <yaml-cpp/node/parse.h>
 #include <yaml-cpp/parser.h>
 
 #include <any>
@@ -204,6 +209,52 @@ std::string readFile(const std::string& path)
 	return ss.str();
 }
 
+/** yaml-cpp's tree as MRPT's: scalars as strings, "~"/"null"/nothing as null nodes, marks
+ *  kept. The same tree MRPT's own parser (libfyaml) gives for valid text, but for comments
+ *  (not kept), without that parser's leaks on invalid text (it throws without freeing its
+ *  parser and events), and with "key:" a null value where that parser throws. */
+yaml::node_t toMrpt(const YAML::Node& n, const std::string& source)
+{
+	yaml::node_t out;
+	const auto m = n.Mark();
+	out.marks.input_pos = m.pos < 0 ? 0 : static_cast<std::size_t>(m.pos);
+	out.marks.line = m.line;
+	out.marks.column = m.column;
+	switch (n.Type())
+	{
+		case YAML::NodeType::Undefined:
+		case YAML::NodeType::Null:
+			break;
+		case YAML::NodeType::Scalar:
+			out.d.emplace<yaml::scalar_t>().emplace<std::string>(n.Scalar());
+			break;
+		case YAML::NodeType::Sequence:
+		{
+			auto& seq = out.d.emplace<yaml::sequence_t>();
+			seq.reserve(n.size());
+			for (const auto& e : n)
+				seq.push_back(toMrpt(e, source));
+			break;
+		}
+		case YAML::NodeType::Map:
+		{
+			auto& map = out.d.emplace<yaml::map_t>();
+			for (const auto& kv : n)
+			{
+				if (!kv.first.IsScalar())
+					throw ConfigError(at(source, kv.first.Mark()) +
+					                  "a map key must be a plain value, not a collection");
+				yaml::node_t key(kv.first.Scalar());
+				key.marks.line = kv.first.Mark().line;
+				key.marks.column = kv.first.Mark().column;
+				map[key] = toMrpt(kv.second, source);
+			}
+			break;
+		}
+	}
+	return out;
+}
+
 /** A value for a message: 0.3, -5, 1e-09. */
 std::string num(double v)
 {
@@ -236,19 +287,17 @@ std::string configLocation(const std::string& file, const std::string& keyPath)
 yaml loadYamlFile(const std::string& path)
 {
 	const std::string text = readFile(path);
-	// Strict first: MRPT's parser lets duplicate keys pass (the last one wins) and reports
-	// some syntax errors on stderr only, returning what it read up to there.
+	// Strict first (duplicate keys, anchors and aliases, positions of errors), then the tree.
 	checkYamlText(text, path);
 	yaml y;
 	try
 	{
-		y = yaml::FromText(text);
+		y = yaml(toMrpt(YAML::Load(text), path));
 	}
-	catch (const std::exception& e)
+	catch (const YAML::Exception& e)
 	{
-		throw ConfigError("config file '" + path + "' is not valid YAML: " + e.what());
+		throw ConfigError(at(path, e.mark) + "YAML syntax error: " + e.msg);
 	}
-	// MRPT's parser reports some syntax errors on stderr and returns a null node.
 	if (!y.isMap())
 		throw ConfigError("config file '" + path +
 		                  "': expected a YAML map of sections at the top level");
