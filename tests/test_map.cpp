@@ -543,3 +543,61 @@ TEST(MapModel, OfflineStoreRoundTripChecksumAndOnDemandLoading)
 	EXPECT_FALSE(back2.localMaps.at(12)->hasData());  // labels only, until needed
 	EXPECT_TRUE(*back2.data(12) == *lm);
 }
+
+TEST(MapModel, UseLockOneWriterOrManyReaders)
+{
+	const test::ScopedTempDir dir("map-lock");
+	const auto d = dir.path().string();
+	// What a second process gets (a lock of its own: flock conflicts between open files,
+	// also within one process).
+	auto attempt = [&](MapUseLock::Mode mode) -> std::string
+	{
+		try
+		{
+			MapUseLock l(d, mode, "second");
+			return "";
+		}
+		catch (const std::runtime_error& e)
+		{
+			return e.what();
+		}
+	};
+	{
+		const MapUseLock w(d, MapUseLock::Mode::Write, "rasterslam run");
+		EXPECT_TRUE(w.held());
+		const std::string who = "process " + std::to_string(::getpid()) + " (rasterslam run)";
+		const std::string expected =
+		    "map folder '" + d + "' is in use: " + who + " is writing it; wait until it ends";
+		EXPECT_EQ(attempt(MapUseLock::Mode::Write), expected);
+		EXPECT_EQ(attempt(MapUseLock::Mode::Read), expected);
+	}
+	{
+		const MapUseLock r1(d, MapUseLock::Mode::Read, "first reader");
+		EXPECT_TRUE(r1.held());
+		EXPECT_EQ(attempt(MapUseLock::Mode::Read), "");  // readers together
+		EXPECT_EQ(attempt(MapUseLock::Mode::Write),
+		          "map folder '" + d +
+		              "' is in use: other processes are reading it; wait until they end");
+	}
+	// Released with the object: a writer again.
+	EXPECT_EQ(attempt(MapUseLock::Mode::Write), "");
+	// The only file it leaves is the lock file itself.
+	std::size_t files = 0;
+	for (const auto& e : fs::directory_iterator(d))
+	{
+		EXPECT_EQ(e.path().filename(), ".use.lock");
+		++files;
+	}
+	EXPECT_EQ(files, 1u);
+	// A writer needs a folder it can write in; a reader of a read-only folder (no lock file
+	// yet) goes on without a lock. Root ignores permissions: only checked otherwise.
+	const auto ro = dir / "read-only";
+	fs::create_directories(ro);
+	fs::permissions(ro, fs::perms::owner_read | fs::perms::owner_exec);
+	if (::geteuid() != 0)
+	{
+		EXPECT_FALSE(MapUseLock(ro.string(), MapUseLock::Mode::Read, "reader").held());
+		EXPECT_THROW(MapUseLock(ro.string(), MapUseLock::Mode::Write, "writer"), std::runtime_error);
+	}
+	fs::permissions(ro, fs::perms::owner_all);
+}

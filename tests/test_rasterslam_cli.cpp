@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <rasterslam/core/config.h>
 #include <rasterslam/io/trajectory_io.h>
+#include <rasterslam/map/map.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -399,4 +400,53 @@ TEST(RasterslamCli, AMapThatCannotBeWrittenIsAnErrorInRunYamlAndLeavesNoDebris)
 	EXPECT_FALSE(fs::exists(dir / "m" / "map.rsmap"));
 	for (const auto& e : fs::recursive_directory_iterator(dir / "m"))
 		EXPECT_FALSE(contains(e.path().filename().string(), ".tmp-")) << e.path();
+}
+
+TEST(RasterslamCli, AMapInUseByAnotherProcessIsRefusedAndLeftAsItWas)
+{
+	test::ScopedTempDir dir("cli-lock");
+	const auto rawlog = test::townVlp16Rawlog();
+	const auto map = (dir / "m").string();
+	auto r = test::runCommand(rs("run --rawlog " + rawlog + " --last 150 --out " +
+	                             (dir / "o1").string() + " --map-out " + map + " --quiet"));
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const auto before = test::runCommand(rs("map info " + map));
+	ASSERT_EQ(before.exitCode, 0) << before.output;
+	const std::string update = rs("run --rawlog " + rawlog + " --last 60 --out " +
+	                              (dir / "o2").string() + " --map-in " + map + " --map-out " +
+	                              map + " --quiet");
+	const std::string prune = rs("map prune " + map + " --keep-per-place 1 --quiet");
+	{
+		// Another process writes the map (this one, holding the lock as a run does).
+		const MapUseLock writer(map, MapUseLock::Mode::Write, "rasterslam run");
+		const std::string inUse = "rasterslam: error: map folder '" + map +
+		                          "' is in use: process " + std::to_string(::getpid()) +
+		                          " (rasterslam run) is writing it; wait until it ends";
+		r = test::runCommand(update);
+		EXPECT_EQ(r.exitCode, 1) << r.output;
+		EXPECT_TRUE(contains(r.output, inUse)) << r.output;
+		r = test::runCommand(prune);
+		EXPECT_EQ(r.exitCode, 1) << r.output;
+		EXPECT_TRUE(contains(r.output, inUse)) << r.output;
+		// Reading the index alone needs no lock.
+		EXPECT_EQ(test::runCommand(rs("map info " + map)).exitCode, 0);
+	}
+	{
+		// Another process reads it: other readers go on, a writer is refused.
+		const MapUseLock reader(map, MapUseLock::Mode::Read, "rasterslam relocalize");
+		r = test::runCommand(prune);
+		EXPECT_EQ(r.exitCode, 1) << r.output;
+		EXPECT_TRUE(contains(r.output, "map folder '" + map +
+		                                   "' is in use: other processes are reading it"))
+		    << r.output;
+		r = test::runCommand(rs("run --rawlog " + rawlog + " --last 60 --out " +
+		                        (dir / "o3").string() + " --map-in " + map + " --quiet"));
+		EXPECT_EQ(r.exitCode, 0) << r.output;
+	}
+	// Nothing the refused commands did reached the map.
+	EXPECT_EQ(test::runCommand(rs("map info " + map)).output, before.output);
+	// Free again: the update runs.
+	r = test::runCommand(update);
+	EXPECT_EQ(r.exitCode, 0) << r.output;
+	EXPECT_TRUE(contains(test::runCommand(rs("map info " + map)).output, "sessions     : 2"));
 }

@@ -43,6 +43,9 @@ void writeAtomically(const fs::path& path, F&& write)
 
 void exportMap(const std::string& dir, const std::string& outDir)
 {
+	std::unique_ptr<MapUseLock> lock;
+	if (std::error_code ec; std::filesystem::is_directory(dir, ec))
+		lock = std::make_unique<MapUseLock>(dir, MapUseLock::Mode::Read, "rasterslam map export");
 	const Map map = loadMap(dir);
 	fs::create_directories(outDir);
 	const fs::path out(outDir);

@@ -112,10 +112,25 @@ int mapMerge(const MergeArgs& args)
 	configPath = resolveConfig(configPath, "slam");
 	Engine engine(loadYamlFile(configPath), configPath);
 	engine.setLogLevel(quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
+	// The output is written (A itself when --out is A), the inputs only read.
+	std::vector<std::unique_ptr<MapUseLock>> locks;
+	const auto lock = [&](const std::string& dir, MapUseLock::Mode mode)
+	{
+		if (std::error_code e; fs::is_directory(dir, e))
+			locks.push_back(std::make_unique<MapUseLock>(dir, mode, "rasterslam map merge"));
+	};
+	const bool outIsA = fs::exists(out, ec) && fs::exists(dirs[0], ec) && fs::equivalent(out, dirs[0], ec);
+	lock(out, MapUseLock::Mode::Write);
+	if (!outIsA)
+		lock(dirs[0], MapUseLock::Mode::Read);
+	lock(dirs[1], MapUseLock::Mode::Read);
+	const bool outLocked = fs::is_directory(out, ec);
 	engine.loadMap(dirs[0]);
 	const auto sessionsA = engine.mapManager()->map().sessions - 1;  // loadMap counts a new session
 	const auto rep = engine.mergeMap(dirs[1]);
 	io::ensureWritableDir(out);  // only now: a merge that fails leaves no folder behind
+	if (!outLocked)
+		lock(out, MapUseLock::Mode::Write);
 	engine.saveMap(out, {});
 	const auto& t = rep.T_this_other;
 	std::printf(
@@ -188,6 +203,11 @@ int mapPrune(const PruneArgs& args)
 	configPath = resolveConfig(configPath, "slam");
 	Engine engine(loadYamlFile(configPath), configPath);
 	engine.setLogLevel(quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_WARN);
+	std::unique_ptr<MapUseLock> lock;
+	if (std::error_code ec; fs::is_directory(dir, ec))
+		lock = std::make_unique<MapUseLock>(
+		    dir, opts.dryRun ? MapUseLock::Mode::Read : MapUseLock::Mode::Write,
+		    "rasterslam map prune");
 	engine.loadMap(dir);
 	const auto rep = engine.pruneMap(opts);
 	std::string ids;

@@ -76,6 +76,10 @@ int relocalizeCommand(const RelocalizeArgs& args)
 			throw ConfigError(
 			    configPath +
 			    ": relocalize needs a rasterizer, a map_manager and a loop_detector section");
+		std::unique_ptr<MapUseLock> lock;
+		if (std::error_code ec; fs::is_directory(mapDir, ec))
+			lock = std::make_unique<MapUseLock>(mapDir, MapUseLock::Mode::Read,
+			                                    "rasterslam relocalize");
 		engine.loadMap(mapDir);
 		const Map& map = engine.mapManager()->map();
 		PoseView poses;

@@ -245,6 +245,9 @@ int runCommand(const RunArgs& args)
 	yaml info = yaml::Map();
 	std::unique_ptr<Engine> engine;
 	std::unique_ptr<io::RawlogSource> source;
+	// Held until the process ends: no other process saves over or prunes the maps this run
+	// reads and writes (MapUseLock).
+	std::unique_ptr<MapUseLock> mapOutLock, mapInLock;
 	try
 	{
 		io::ensureWritableDir(outDir);
@@ -262,7 +265,12 @@ int runCommand(const RunArgs& args)
 				                         " holds a map already: pass --map-in " + mapOut +
 				                         " to extend it, or --overwrite to replace it");
 			io::ensureWritableDir(mapOut);
+			mapOutLock =
+			    std::make_unique<MapUseLock>(mapOut, MapUseLock::Mode::Write, "rasterslam run");
 		}
+		if (std::error_code ec; !mapIn.empty() && fs::is_directory(mapIn, ec) &&
+		                        !(mapOutLock && fs::equivalent(mapIn, mapOut, ec)))
+			mapInLock = std::make_unique<MapUseLock>(mapIn, MapUseLock::Mode::Read, "rasterslam run");
 		configPath = resolveConfig(configPath, "slam");
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);

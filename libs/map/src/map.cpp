@@ -190,6 +190,63 @@ void removeStaleTemporaries(const std::string& dir)
 }
 }  // namespace
 
+MapUseLock::MapUseLock(const std::string& dir, Mode mode, const std::string& what)
+{
+	const auto path = (fs::path(dir) / ".use.lock").string();
+	fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+	if (fd_ < 0 && mode == Mode::Read)
+		fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+	if (fd_ < 0)
+	{
+		if (mode == Mode::Read)
+			return;  // a read-only folder: nobody can save there either
+		throw std::runtime_error("cannot write in map folder '" + dir + "': " + std::strerror(errno));
+	}
+	if (::flock(fd_, (mode == Mode::Write ? LOCK_EX : LOCK_SH) | LOCK_NB) == 0)
+	{
+		if (mode == Mode::Write)
+		{
+			// Who writes, for the message another process gives.
+			const std::string who = "process " + std::to_string(::getpid()) + " (" + what + ")\n";
+			if (::ftruncate(fd_, 0) == 0)
+				(void)!::pwrite(fd_, who.data(), who.size(), 0);
+		}
+		return;
+	}
+	const int err = errno;
+	// Held by readers (a shared lock can still be had) or by a writer (named in the file).
+	bool writer = true;
+	if (mode == Mode::Write && ::flock(fd_, LOCK_SH | LOCK_NB) == 0)
+	{
+		writer = false;
+		::flock(fd_, LOCK_UN);
+	}
+	std::string who;
+	if (writer)
+	{
+		char buf[256] = {};
+		const auto n = ::pread(fd_, buf, sizeof(buf) - 1, 0);
+		who.assign(buf, n > 0 ? static_cast<std::size_t>(n) : 0);
+		while (!who.empty() && (who.back() == '\n' || who.back() == '\r'))
+			who.pop_back();
+	}
+	::close(fd_);
+	fd_ = -1;
+	if (err != EWOULDBLOCK)
+		throw std::runtime_error("cannot lock map folder '" + dir + "': " + std::strerror(err));
+	throw std::runtime_error("map folder '" + dir + "' is in use: " +
+	                         (writer ? (who.empty() ? std::string("another process") : who) +
+	                                       " is writing it; wait until it ends"
+	                                 : std::string("other processes are reading it; wait until "
+	                                               "they end")));
+}
+
+MapUseLock::~MapUseLock()
+{
+	if (fd_ >= 0)
+		::close(fd_);
+}
+
 void saveMap(const Map& map, const PoseView& poses, const std::string& dir)
 {
 	if (map.localMaps.empty())

@@ -123,4 +123,32 @@ void saveMap(const Map& map, const PoseView& poses, const std::string& dir);
 Map loadMap(const std::string& dir);
 std::string mapFilePath(const std::string& dir);
 
+/** A process's use of a map folder, held for the whole of its work on the map (advisory:
+ *  flock(2) on `DIR/.use.lock`). One writer (a run with --map-out, `map prune`, `map merge`'s
+ *  output) and nothing else, or any number of readers (a run with --map-in alone, `relocalize`,
+ *  `map merge`'s inputs): a save deletes the store files its index no longer names, which a
+ *  reader may still load on demand, and two writers would each save over the other's work.
+ *  A conflict throws at once (no waiting) naming the folder and, for a writer, its process.
+ *  The kernel drops the lock when the process ends, also when it is killed. A reader that
+ *  cannot create the lock file (a read-only folder) goes on without a lock. */
+class MapUseLock
+{
+   public:
+	enum class Mode
+	{
+		Read,
+		Write
+	};
+	/** `dir` must exist. `what` is recorded for others' messages (e.g. "rasterslam run"). */
+	MapUseLock(const std::string& dir, Mode mode, const std::string& what);
+	~MapUseLock();
+	MapUseLock(const MapUseLock&) = delete;
+	MapUseLock& operator=(const MapUseLock&) = delete;
+	/** False for a reader that went on without a lock. */
+	bool held() const { return fd_ >= 0; }
+
+   private:
+	int fd_ = -1;
+};
+
 }  // namespace rasterslam
