@@ -597,7 +597,8 @@ TEST(MapModel, UseLockOneWriterOrManyReaders)
 	if (::geteuid() != 0)
 	{
 		EXPECT_FALSE(MapUseLock(ro.string(), MapUseLock::Mode::Read, "reader").held());
-		EXPECT_THROW(MapUseLock(ro.string(), MapUseLock::Mode::Write, "writer"), std::runtime_error);
+		EXPECT_THROW(MapUseLock(ro.string(), MapUseLock::Mode::Write, "writer"),
+		             std::runtime_error);
 	}
 	fs::permissions(ro, fs::perms::owner_all);
 }

@@ -412,9 +412,9 @@ TEST(RasterslamCli, AMapInUseByAnotherProcessIsRefusedAndLeftAsItWas)
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	const auto before = test::runCommand(rs("map info " + map));
 	ASSERT_EQ(before.exitCode, 0) << before.output;
-	const std::string update = rs("run --rawlog " + rawlog + " --last 60 --out " +
-	                              (dir / "o2").string() + " --map-in " + map + " --map-out " +
-	                              map + " --quiet");
+	const std::string update =
+	    rs("run --rawlog " + rawlog + " --last 60 --out " + (dir / "o2").string() + " --map-in " +
+	       map + " --map-out " + map + " --quiet");
 	const std::string prune = rs("map prune " + map + " --keep-per-place 1 --quiet");
 	{
 		// Another process writes the map (this one, holding the lock as a run does).
@@ -436,8 +436,8 @@ TEST(RasterslamCli, AMapInUseByAnotherProcessIsRefusedAndLeftAsItWas)
 		const MapUseLock reader(map, MapUseLock::Mode::Read, "rasterslam relocalize");
 		r = test::runCommand(prune);
 		EXPECT_EQ(r.exitCode, 1) << r.output;
-		EXPECT_TRUE(contains(r.output, "map folder '" + map +
-		                                   "' is in use: other processes are reading it"))
+		EXPECT_TRUE(contains(r.output,
+		                     "map folder '" + map + "' is in use: other processes are reading it"))
 		    << r.output;
 		r = test::runCommand(rs("run --rawlog " + rawlog + " --last 60 --out " +
 		                        (dir / "o3").string() + " --map-in " + map + " --quiet"));

@@ -119,7 +119,8 @@ int mapMerge(const MergeArgs& args)
 		if (std::error_code e; fs::is_directory(dir, e))
 			locks.push_back(std::make_unique<MapUseLock>(dir, mode, "rasterslam map merge"));
 	};
-	const bool outIsA = fs::exists(out, ec) && fs::exists(dirs[0], ec) && fs::equivalent(out, dirs[0], ec);
+	const bool outIsA =
+	    fs::exists(out, ec) && fs::exists(dirs[0], ec) && fs::equivalent(out, dirs[0], ec);
 	lock(out, MapUseLock::Mode::Write);
 	if (!outIsA)
 		lock(dirs[0], MapUseLock::Mode::Read);

@@ -270,7 +270,8 @@ int runCommand(const RunArgs& args)
 		}
 		if (std::error_code ec; !mapIn.empty() && fs::is_directory(mapIn, ec) &&
 		                        !(mapOutLock && fs::equivalent(mapIn, mapOut, ec)))
-			mapInLock = std::make_unique<MapUseLock>(mapIn, MapUseLock::Mode::Read, "rasterslam run");
+			mapInLock =
+			    std::make_unique<MapUseLock>(mapIn, MapUseLock::Mode::Read, "rasterslam run");
 		configPath = resolveConfig(configPath, "slam");
 		const yaml cfg = loadYamlFile(configPath);
 		engine = std::make_unique<Engine>(cfg, configPath);

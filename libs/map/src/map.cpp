@@ -200,7 +200,8 @@ MapUseLock::MapUseLock(const std::string& dir, Mode mode, const std::string& wha
 	{
 		if (mode == Mode::Read)
 			return;  // a read-only folder: nobody can save there either
-		throw std::runtime_error("cannot write in map folder '" + dir + "': " + std::strerror(errno));
+		throw std::runtime_error("cannot write in map folder '" + dir +
+		                         "': " + std::strerror(errno));
 	}
 	if (::flock(fd_, (mode == Mode::Write ? LOCK_EX : LOCK_SH) | LOCK_NB) == 0)
 	{
