@@ -259,7 +259,15 @@ TEST(StrictConfig, OutOfRangeValuesNameFileLineAndKey)
 	    {"odometry", "rasterslam::GicpOdometry", "min_range_m", "-2", "must be >= 0, got -2"},
 	    {"map_manager", "rasterslam::LocalMapManager", "keyframes_per_map", "0",
 	     "must be in [1, 32], got 0"},
-	    {"map_manager", "rasterslam::LocalMapManager", "map_features", "0", "must be >= 1, got 0"},
+	    {"map_manager", "rasterslam::LocalMapManager", "map_features", "0",
+	     "must be in [1, 100000], got 0"},
+	    // fuzz_config found these overflow an int count (num_features * 3) before the bound.
+	    {"odometry", "rasterslam::OrbOdometry", "num_features", "0001000000000",
+	     "must be in [1, 100000], got 1000000000"},
+	    {"odometry", "rasterslam::OrbOdometry", "scale_levels", "1000",
+	     "must be in [1, 32], got 1000"},
+	    {"loop_detector", "rasterslam::BowLoopDetector", "query_features", "2147483647",
+	     "must be in [1, 100000], got 2147483647"},
 	    {"optimizer", "rasterslam::LevMarqOptimizer", "tau", "-1", "must be > 0, got -1"},
 	    {"optimizer", "rasterslam::CeresOptimizer", "max_iterations", "0", "must be >= 1, got 0"},
 	};

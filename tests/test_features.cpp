@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <limits>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
 #include <random>
@@ -281,6 +282,28 @@ TEST(Matcher, GateExcludesPairsFarApartInSpace)
 	EXPECT_EQ(features::matchMutual(A, A, mp, &posA, &posB).size(), 100u);
 	mp.gateRadius_m = 3;
 	EXPECT_EQ(features::matchMutual(A, A, mp).size(), 100u);
+}
+
+TEST(Orb, ExtractorTakesAnyFeatureCount)
+{
+	// fuzz_config found numFeatures * 3 overflowing an int (undefined behaviour: the sanitizer
+	// suite aborts on it). The count of corners detected saturates; the extraction works.
+	cv::Mat img(240, 320, CV_8UC1, cv::Scalar(0));
+	std::mt19937 rng(9);
+	std::uniform_int_distribution<int> x(0, 319), y(0, 239), s(5, 30), g(40, 255);
+	for (int i = 0; i < 150; i++)
+	{
+		const cv::Point a(x(rng), y(rng));
+		cv::rectangle(img, a, a + cv::Point(s(rng), s(rng)), cv::Scalar(g(rng)), cv::FILLED);
+	}
+	features::OrbParams p;
+	p.numFeatures = std::numeric_limits<int>::max() / 2;
+	features::OrbExtractor orb(p);
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat desc;
+	orb.extract(img, kps, desc);
+	EXPECT_GT(kps.size(), 100u);
+	EXPECT_EQ(desc.rows, static_cast<int>(kps.size()));
 }
 
 TEST(Orb, ExtractorOnATexturedImage)

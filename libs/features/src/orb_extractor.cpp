@@ -1,12 +1,17 @@
 #include <rasterslam/features/orb_extractor.h>
 
 #include <algorithm>
+#include <climits>
 
 namespace rasterslam::features
 {
 OrbExtractor::OrbExtractor(const OrbParams& p) : p_(p)
 {
-	orb_ = cv::ORB::create(p_.numFeatures * 3, p_.scaleFactor, p_.levels, p_.edgeThreshold, 0, 2,
+	// Three times the features kept are detected, for the grid to choose from (in 64 bits: a
+	// config may ask for any count; OpenCV takes an int).
+	const int detect =
+	    static_cast<int>(std::min<long long>(3LL * std::max(p_.numFeatures, 1), INT_MAX));
+	orb_ = cv::ORB::create(detect, p_.scaleFactor, p_.levels, p_.edgeThreshold, 0, 2,
 	                       cv::ORB::HARRIS_SCORE, p_.patchSize, p_.fastThreshold);
 }
 
@@ -58,6 +63,10 @@ std::vector<cv::KeyPoint> distributeOverGrid(const std::vector<cv::KeyPoint>& kp
 void OrbExtractor::extract(const cv::Mat& image, std::vector<cv::KeyPoint>& keypoints,
                            cv::Mat& descriptors)
 {
+	// No more corners than pixels (OpenCV sizes its buffers by the count asked for).
+	const long long pixels = static_cast<long long>(image.rows) * image.cols;
+	orb_->setMaxFeatures(static_cast<int>(
+	    std::max(1LL, std::min({3LL * std::max(p_.numFeatures, 1), pixels, 1LL * INT_MAX}))));
 	int thr = p_.fastThreshold;
 	std::vector<cv::KeyPoint> kps;
 	for (;;)

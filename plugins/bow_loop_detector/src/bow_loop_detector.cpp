@@ -42,7 +42,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
 	p.requireAtLeast(onlineBranching_, 2, "online_branching");
 	p.requireAtLeast(onlineLevels_, 1, "online_levels");
-	p.requireAtLeast(queryOrb_.numFeatures, 1, "query_features");
+	p.requireRange(queryOrb_.numFeatures, 1, features::kMaxFeatures, "query_features");
 	p.requireAtLeast(excludeRecent_s_, 0, "exclude_recent_s");
 	p.requireAtLeast(minScore_, 0, "min_score");  // normalized: may exceed 1
 	p.requireAtLeast(maxCandidates_, 1, "max_candidates");

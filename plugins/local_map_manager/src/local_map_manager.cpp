@@ -145,7 +145,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	p.requirePositive(mapRaster_.maxRange_m, "map_extent_m");
 	if (2 * mapRaster_.maxRange_m / mapRaster_.resolution_m > 8192)
 		p.reject("map_resolution_m", "the local-map image would exceed 8192 pixels a side");
-	p.requireAtLeast(mapOrb_.numFeatures, 1, "map_features");
+	p.requireRange(mapOrb_.numFeatures, 1, features::kMaxFeatures, "map_features");
 	orb_ = std::make_unique<features::OrbExtractor>(mapOrb_);
 	map_ = Map();
 	map_.sessions = 1;

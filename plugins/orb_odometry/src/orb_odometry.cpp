@@ -99,16 +99,18 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
 	alignGround_ = p.getBool("align_ground", alignGround_);
 	groundMaxCorrection_deg_ = p.getDouble("ground_max_correction_deg", groundMaxCorrection_deg_);
-	p.requirePositive(o.numFeatures, "num_features");
-	p.requirePositive(o.gridCols, "grid_cols");
-	p.requirePositive(o.gridRows, "grid_rows");
+	// Upper bounds far beyond use (an elevation image has about 250,000 pixels; OpenCV's ORB
+	// defaults to 8 levels): larger values only overflow counts or exhaust memory.
+	p.requireRange(o.numFeatures, 1, features::kMaxFeatures, "num_features");
+	p.requireRange(o.gridCols, 1, 256, "grid_cols");
+	p.requireRange(o.gridRows, 1, 256, "grid_rows");
 	p.requireRange(o.fastThreshold, 1, 255, "fast_threshold");  // grey-level difference
 	p.require(o.minFastThreshold >= 1 && o.minFastThreshold <= o.fastThreshold, o.minFastThreshold,
 	          "min_fast_threshold",
 	          "must be in [1, fast_threshold (" + std::to_string(o.fastThreshold) + ")]");
-	p.requirePositive(o.levels, "scale_levels");
+	p.requireRange(o.levels, 1, 32, "scale_levels");
 	p.require(o.scaleFactor > 1, o.scaleFactor, "scale_factor", "must be > 1");
-	p.requireAtLeast(o.patchSize, 2, "patch_size");             // OpenCV's ORB needs 2
+	p.requireRange(o.patchSize, 2, 255, "patch_size");          // OpenCV's ORB needs 2
 	p.requireRange(match_.maxDistance, 0, 256, "max_hamming");  // ORB: 256-bit descriptors
 	p.require(match_.ratio > 0 && match_.ratio <= 1, match_.ratio, "ratio",
 	          "must be in (0, 1] (1 disables the test)");

@@ -8,6 +8,10 @@
 
 namespace rasterslam::features
 {
+/** The most features a config may ask of one image (an elevation image has about 250,000
+ *  pixels): a bound for the plugins' parameter checks. */
+constexpr int kMaxFeatures = 100000;
+
 struct OrbParams
 {
 	int numFeatures = 2000;          //!< features kept per image
