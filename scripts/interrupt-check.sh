@@ -11,7 +11,8 @@
 #     temporary file in the map folder) to 20 ms past the length of the final optimization and
 #     save (read from an uninterrupted run's log). After
 #     each kill the map must load (`rasterslam map info`) with the old session count or the new
-#     one; then a whole run over it must pass and leave no *.tmp-* file anywhere in the map.
+#     one; then a whole run over it must pass and leave no *.tmp-* file anywhere in the map,
+#     and no run's offline local maps in the temporary folder (the killed run's included).
 # Fails on the first violation (naming the trial, its moment and the reason); at the end prints
 # what the signals hit. Seeded: SEED (1) gives the same moments on every run. Do not rebuild
 # the programs while it runs.
@@ -26,8 +27,15 @@ RANDOM="${SEED:-1}"
 for p in rasterslam rasterslam-sim; do
   [ -x "$bin/$p" ] || { echo "interrupt-check: $bin/$p not built (ninja -C $BUILD)" >&2; exit 1; }
 done
+# Job control: background programs get SIGINT as from a terminal (a non-interactive shell
+# would start them with SIGINT ignored).
+set -m
 work="$(mktemp -d "${TMPDIR:-/tmp}/rasterslam-interrupt.XXXXXX")"
 [ "${KEEP:-0}" = 1 ] || trap 'rm -rf "$work"' EXIT
+# The programs' own temporary folder (a run's offline local maps): checked for what killed
+# runs leave.
+export TMPDIR="$work/tmp"
+mkdir -p "$TMPDIR"
 
 fail() {
   echo "interrupt-check: FAILED: $*" >&2
@@ -36,12 +44,14 @@ fail() {
   exit 1
 }
 now_ms() { date +%s%3N; }
-# A uniform whole number in [0, n) from bash's seeded generator (30 bits).
-uniform() { echo $(((RANDOM << 15 | RANDOM) % $1)); }
+# A uniform whole number in [0, n) from bash's seeded generator (30 bits), in REPLY: drawn in
+# this shell (a $(...) subshell would reseed the generator).
+uniform() { REPLY=$(((RANDOM << 15 | RANDOM) % $1)); }
 # Data lines of a TUM file.
 lines() { [ -f "$1" ] && grep -cv '^#' "$1" || echo 0; }
 yamlv() { sed -n "s/^ *$2: *\([-0-9A-Za-z_.]*\).*/\1/p" "$1" | head -n1; }
 debris() { find "$@" -name '*.tmp-*' 2>/dev/null | head -n 5; }
+offline_left() { find "$TMPDIR" -mindepth 1 -maxdepth 1 -name 'rasterslam-offline-*' | head -n 3; }
 
 rawlog="$work/town-vlp16.rawlog"
 "$bin/rasterslam-sim" --scenario "$here/rawlogs/town-vlp16.yaml" -o "$rawlog" >/dev/null 2>&1 ||
@@ -60,7 +70,8 @@ echo "interrupt-check: an uninterrupted run: $scans_ref scans in $total_ms ms"
 # --- 1. Ctrl-C at random moments -----------------------------------------------------------
 hit_start=0 hit_run=0 finished=0
 for i in $(seq 1 "$N_INT"); do
-  at=$(uniform $((total_ms + 1)))
+  uniform $((total_ms + 1))
+  at=$REPLY
   out="$work/int$i" map="$work/int$i-map"
   "${run[@]}" --quiet --out "$out" --map-out "$map" >"$work/int$i.log" 2>&1 &
   pid=$!
@@ -70,6 +81,16 @@ for i in $(seq 1 "$N_INT"); do
   wait "$pid" || rc=$?
   what="trial $i (SIGINT at $at ms of $total_ms)"
   [ "$rc" = 130 ] || [ "$rc" = 0 ] || fail "$what: exit $rc: $(tail -n 3 "$work/int$i.log")"
+  if [ "$rc" = 130 ] && grep -q 'interrupted by SIGINT after 0 scans; nothing to write' "$work/int$i.log"; then
+    # Before the first scan (loading the config, the plugins): nothing to write, nothing left.
+    [ ! -f "$out/trajectory.tum" ] || fail "$what: a trajectory after 0 scans"
+    [ ! -f "$map/map.rsmap" ] || fail "$what: a map after 0 scans"
+    d=$(debris "$out" "$map")
+    [ -z "$d" ] || fail "$what: temporary files left: $d"
+    hit_start=$((hit_start + 1))
+    rm -rf "$out" "$map"
+    continue
+  fi
   [ -f "$out/run.yaml" ] || fail "$what: no run.yaml"
   n=$(lines "$out/trajectory.tum")
   counted=$(yamlv "$out/run.yaml" scans)
@@ -78,7 +99,7 @@ for i in $(seq 1 "$N_INT"); do
   if [ "$rc" = 130 ]; then
     grep -q '^ *interrupted_by: SIGINT' "$out/run.yaml" || fail "$what: run.yaml names no SIGINT"
     grep -q 'interrupted by SIGINT after ' "$work/int$i.log" || fail "$what: no line saying so"
-    [ "$n" -gt 0 ] && hit_run=$((hit_run + 1)) || hit_start=$((hit_start + 1))
+    hit_run=$((hit_run + 1))
   else
     finished=$((finished + 1))
     [ "$n" = "$scans_ref" ] || fail "$what: exit 0 after $n of $scans_ref scans"
@@ -90,10 +111,12 @@ for i in $(seq 1 "$N_INT"); do
   fi
   d=$(debris "$out" "$map")
   [ -z "$d" ] || fail "$what: temporary files left: $d"
+  d=$(offline_left)
+  [ -z "$d" ] || fail "$what: its offline local maps were left in the temporary folder: $d"
   rm -rf "$out" "$map"
 done
 echo "interrupt-check: Ctrl-C at $N_INT random moments: $hit_run during the scans or the save," \
-  "$hit_start before the first scan, $finished after the end; every one left its outputs"
+  "$hit_start before the first scan, $finished after the last scan (exit 0, all written); every one left its outputs"
 
 # --- 2. SIGKILL while saving an updated map ------------------------------------------------
 # The window: from the final optimization to the end of the save, read from the log's time
@@ -126,7 +149,8 @@ old=0 new=0 mid=0 missed=0
 for i in $(seq 1 "$N_KILL"); do
   rm -rf "$work/m" "$work/k"
   cp -a "$work/base-map" "$work/m"
-  at=$(uniform "$window")
+  uniform "$window"
+  at=$REPLY
   "${run[@]}" --quiet --out "$work/k" --map-in "$work/m" --map-out "$work/m" >"$work/kill.log" 2>&1 &
   pid=$!
   # The save has begun when its first temporary file appears (a busy loop of shell builtins:
@@ -163,10 +187,15 @@ for i in $(seq 1 "$N_KILL"); do
     fail "$what: the next run over the map failed: $(tail -n 3 "$work/next.log")"
   d=$(debris "$work/m" "$work/k")
   [ -z "$d" ] || fail "$what: the next run left temporary files: $d"
+  d=$(offline_left)
+  [ -z "$d" ] || fail "$what: after the next run, offline local maps are left in the temporary folder: $d"
   "$bin/rasterslam" map info "$work/m" >"$work/info.log" 2>&1 ||
     fail "$what: the map after the next run does not load: $(tail -n 2 "$work/info.log")"
 done
 echo "interrupt-check: $N_KILL runs killed 0-$window ms after their save began ($missed ended" \
   "before a temporary file was seen): $old left the old map, $new the new one, $mid left" \
   "temporary files (all cleaned by the next run); every map loaded"
+# A check that killed nothing during a save would prove nothing.
+[ "$N_KILL" -lt 10 ] || [ "$missed" -lt "$N_KILL" ] || fail "no kill landed during a save"
+[ "$N_KILL" -lt 10 ] || [ "$old" -gt 0 ] || fail "no kill stopped a save before it replaced the map"
 echo "interrupt-check: passed"

@@ -410,6 +410,13 @@ TEST(RasterslamCli, AMapInUseByAnotherProcessIsRefusedAndLeftAsItWas)
 	auto r = test::runCommand(rs("run --rawlog " + rawlog + " --last 150 --out " +
 	                             (dir / "o1").string() + " --map-out " + map + " --quiet"));
 	ASSERT_EQ(r.exitCode, 0) << r.output;
+	// What map info says, but for the size on disk (the lock file's content varies).
+	const auto info = [&]
+	{
+		auto out = test::runCommand(rs("map info " + map)).output;
+		out.erase(0, out.find('\n'));
+		return out;
+	};
 	const auto before = test::runCommand(rs("map info " + map));
 	ASSERT_EQ(before.exitCode, 0) << before.output;
 	const std::string update =
@@ -444,9 +451,42 @@ TEST(RasterslamCli, AMapInUseByAnotherProcessIsRefusedAndLeftAsItWas)
 		EXPECT_EQ(r.exitCode, 0) << r.output;
 	}
 	// Nothing the refused commands did reached the map.
-	EXPECT_EQ(test::runCommand(rs("map info " + map)).output, before.output);
+	auto expected = before.output;
+	expected.erase(0, expected.find('\n'));
+	EXPECT_EQ(info(), expected);
 	// Free again: the update runs.
 	r = test::runCommand(update);
 	EXPECT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_TRUE(contains(test::runCommand(rs("map info " + map)).output, "sessions     : 2"));
+}
+
+TEST(RasterslamCli, OfflineLocalMapsAKilledRunLeftAreRemovedByTheNextRun)
+{
+	test::ScopedTempDir dir("cli-offline");
+	// The run's temporary folder: a killed run's offline local maps (its process is gone) and
+	// a live process's.
+	const auto tmp = dir / "tmp";
+	const pid_t dead = ::fork();
+	if (dead == 0)
+		::_exit(0);
+	::waitpid(dead, nullptr, 0);
+	const auto stale = tmp / ("rasterslam-offline-" + std::to_string(dead) + "-0");
+	const auto live = tmp / ("rasterslam-offline-" + std::to_string(::getpid()) + "-0");
+	fs::create_directories(stale);
+	fs::create_directories(live);
+	std::ofstream(stale / "000003.rslm") << "left by a killed run";
+	// The drive puts local maps offline (run.yaml: local_maps_offline > 0).
+	const auto r = test::runCommand("TMPDIR=" + tmp.string() + " " +
+	                                rs("run --rawlog " + test::townVlp16Rawlog() + " --out " +
+	                                   (dir / "o").string() + " --quiet"));
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const auto info = loadYamlFile((dir / "o" / "run.yaml").string());
+	EXPECT_GT(info["counts"]["local_maps_offline"].as<int>(), 0);
+	EXPECT_FALSE(fs::exists(stale));
+	EXPECT_TRUE(fs::exists(live));
+	// The run removed its own.
+	std::size_t left = 0;
+	for (const auto& e : fs::directory_iterator(tmp))
+		left += e.path() != live;
+	EXPECT_EQ(left, 0u);
 }

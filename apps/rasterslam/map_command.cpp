@@ -101,9 +101,6 @@ int mapMerge(const MergeArgs& args)
 	const bool overwrite = args.overwrite, quiet = args.quiet;
 	std::string configPath = args.configPath;
 	std::error_code ec;
-	if (fs::exists(mapFilePath(out), ec) && !overwrite)
-		throw std::runtime_error("--out " + out +
-		                         " holds a map already: pass --overwrite to replace it");
 	if (fs::exists(dirs[0], ec) && fs::exists(dirs[1], ec) && fs::equivalent(dirs[0], dirs[1], ec))
 		throw std::runtime_error("map merge: A and B are the same map ('" + dirs[0] + "')");
 	if (fs::exists(dirs[1], ec) && fs::exists(out, ec) && fs::equivalent(dirs[1], out, ec))
@@ -126,6 +123,10 @@ int mapMerge(const MergeArgs& args)
 		lock(dirs[0], MapUseLock::Mode::Read);
 	lock(dirs[1], MapUseLock::Mode::Read);
 	const bool outLocked = fs::is_directory(out, ec);
+	// Under the lock: no other writer can save a map there meanwhile.
+	if (fs::exists(mapFilePath(out), ec) && !overwrite)
+		throw std::runtime_error("--out " + out +
+		                         " holds a map already: pass --overwrite to replace it");
 	engine.loadMap(dirs[0]);
 	const auto sessionsA = engine.mapManager()->map().sessions - 1;  // loadMap counts a new session
 	const auto rep = engine.mergeMap(dirs[1]);

@@ -241,6 +241,9 @@ int runCommand(const RunArgs& args)
 
 	const auto logLevel = verbose ? mrpt::system::LVL_DEBUG
 	                              : (quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
+	// From the start: a Ctrl-C while the config, the plugins or a big map load ends the run
+	// before its first scan (exit 130), like one during the scans.
+	installStopHandlers();
 	RunResult res;
 	yaml info = yaml::Map();
 	std::unique_ptr<Engine> engine;
@@ -255,7 +258,11 @@ int runCommand(const RunArgs& args)
 		if (!mapOut.empty())
 		{
 			// A saved map is the work of earlier sessions: replace it only when it is the one this
-			// session extends, or when asked to.
+			// session extends, or when asked to (checked under the lock: no other writer can
+			// save one there meanwhile).
+			io::ensureWritableDir(mapOut);
+			mapOutLock =
+			    std::make_unique<MapUseLock>(mapOut, MapUseLock::Mode::Write, "rasterslam run");
 			std::error_code ec;
 			const bool exists = fs::exists(mapFilePath(mapOut), ec);
 			const bool same =
@@ -264,9 +271,6 @@ int runCommand(const RunArgs& args)
 				throw std::runtime_error("--map-out " + mapOut +
 				                         " holds a map already: pass --map-in " + mapOut +
 				                         " to extend it, or --overwrite to replace it");
-			io::ensureWritableDir(mapOut);
-			mapOutLock =
-			    std::make_unique<MapUseLock>(mapOut, MapUseLock::Mode::Write, "rasterslam run");
 		}
 		if (std::error_code ec; !mapIn.empty() && fs::is_directory(mapIn, ec) &&
 		                        !(mapOutLock && fs::equivalent(mapIn, mapOut, ec)))
@@ -325,7 +329,6 @@ int runCommand(const RunArgs& args)
 		};
 	}
 	std::string runError;
-	installStopHandlers();
 	opts.stop = &gStopSignal;
 	try
 	{

@@ -336,7 +336,7 @@ std::optional<std::string> ParamReader::scalar(const std::string& key) const
 		return std::nullopt;
 	const yaml v = node_[key];
 	if (v.isNullNode())
-		return std::nullopt;
+		fail(key, "has no value (write one, or leave the key out for the default)");
 	if (!v.isScalar())
 		fail(key, "expected a single value, got a list or a map");
 	return v.as<std::string>();

@@ -142,7 +142,7 @@ class FolderLock
 	explicit FolderLock(const std::string& dir)
 	{
 		const auto path = (fs::path(dir) / ".lock").string();
-		fd_ = ::open(path.c_str(), O_RDWR | O_CREAT, 0644);
+		fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
 		if (fd_ < 0)
 			throw std::runtime_error("cannot write in map folder '" + dir +
 			                         "': " + std::strerror(errno));
@@ -193,9 +193,9 @@ void removeStaleTemporaries(const std::string& dir)
 MapUseLock::MapUseLock(const std::string& dir, Mode mode, const std::string& what)
 {
 	const auto path = (fs::path(dir) / ".use.lock").string();
-	fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-	if (fd_ < 0 && mode == Mode::Read)
-		fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+	fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+	if (fd_ < 0 && mode == Mode::Read && errno != ELOOP)
+		fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
 	if (fd_ < 0)
 	{
 		if (mode == Mode::Read)

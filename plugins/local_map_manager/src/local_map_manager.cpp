@@ -9,9 +9,11 @@
 #include <rasterslam/map/registration.h>
 #include <rasterslam/mapping/local_ba.h>
 #include <rasterslam/raster/elevation_image.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
@@ -170,6 +172,31 @@ LocalMapManager::~LocalMapManager()
 	}
 }
 
+namespace
+{
+/** Offline folders that runs killed before their end left in the temporary folder
+ *  (rasterslam-offline-PID-N of a process that is gone): removed, or a killed run's local
+ *  maps would stay there. */
+void removeStaleOfflineDirs(const std::filesystem::path& tmp)
+{
+	std::error_code ec;
+	const std::string prefix = "rasterslam-offline-";
+	for (const auto& e : std::filesystem::directory_iterator(tmp, ec))
+	{
+		const auto name = e.path().filename().string();
+		if (name.rfind(prefix, 0) != 0 || !e.is_directory(ec))
+			continue;
+		const auto pid = name.substr(prefix.size(), name.find('-', prefix.size()) - prefix.size());
+		if (pid.empty() || pid.size() > 9 ||
+		    pid.find_first_not_of("0123456789") != std::string::npos)
+			continue;
+		const auto p = static_cast<pid_t>(std::stol(pid));
+		if (p != ::getpid() && ::kill(p, 0) != 0 && errno == ESRCH)
+			std::filesystem::remove_all(e.path(), ec);
+	}
+}
+}  // namespace
+
 LocalMapStore& LocalMapManager::store()
 {
 	if (!map_.offline)
@@ -177,8 +204,11 @@ LocalMapStore& LocalMapManager::store()
 		auto dir = offlineDir_;
 		if (dir.empty())
 		{
-			// Nothing asked to keep it: a folder of this run, removed when it ends.
+			// Nothing asked to keep it: a folder of this run, removed when it ends (and by
+			// the next run when this one is killed).
 			static std::atomic<int> counter{0};
+			if (counter == 0)
+				removeStaleOfflineDirs(std::filesystem::temp_directory_path());
 			dir =
 			    (std::filesystem::temp_directory_path() /
 			     mrpt::format("rasterslam-offline-%d-%d", static_cast<int>(::getpid()), counter++))

@@ -11,6 +11,7 @@
 
 #include <Eigen/Dense>
 #include <chrono>
+#include <cmath>
 #include <memory>
 
 namespace rasterslam
@@ -79,7 +80,7 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	o.fastThreshold = p.getInt("fast_threshold", o.fastThreshold);
 	o.minFastThreshold = p.getInt("min_fast_threshold", o.minFastThreshold);
 	o.levels = p.getInt("scale_levels", o.levels);
-	o.scaleFactor = static_cast<float>(p.getDouble("scale_factor", o.scaleFactor));
+	const double scaleFactor = p.getDouble("scale_factor", o.scaleFactor);
 	o.patchSize = p.getInt("patch_size", o.patchSize);
 	o.edgeThreshold = o.patchSize;
 	match_.maxDistance = p.getInt("max_hamming", 64);
@@ -109,7 +110,13 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	          "min_fast_threshold",
 	          "must be in [1, fast_threshold (" + std::to_string(o.fastThreshold) + ")]");
 	p.requireRange(o.levels, 1, 32, "scale_levels");
-	p.require(o.scaleFactor > 1, o.scaleFactor, "scale_factor", "must be > 1");
+	p.require(scaleFactor > 1 && scaleFactor <= 2, scaleFactor, "scale_factor",
+	          "must be in (1, 2]");
+	// The smallest pyramid level must keep an image to find corners in.
+	p.require(std::pow(scaleFactor, o.levels - 1) <= 32, scaleFactor, "scale_factor",
+	          "to the power scale_levels - 1 (" + std::to_string(o.levels - 1) +
+	              ") must be at most 32: the smallest pyramid level would be too small");
+	o.scaleFactor = static_cast<float>(scaleFactor);
 	p.requireRange(o.patchSize, 2, 255, "patch_size");          // OpenCV's ORB needs 2
 	p.requireRange(match_.maxDistance, 0, 256, "max_hamming");  // ORB: 256-bit descriptors
 	p.require(match_.ratio > 0 && match_.ratio <= 1, match_.ratio, "ratio",
