@@ -284,18 +284,28 @@ TEST(Matcher, GateExcludesPairsFarApartInSpace)
 	EXPECT_EQ(features::matchMutual(A, A, mp).size(), 100u);
 }
 
-TEST(Orb, ExtractorTakesAnyFeatureCount)
+/** A black image with `rects` filled rectangles (sides 5 to `maxSide` px, grey levels
+ *  `greyLo` to `greyHi`) at random places drawn from `rng`: corners for ORB. */
+cv::Mat texturedImage(int width, int height, int rects, int maxSide, int greyLo, int greyHi,
+                      std::mt19937& rng)
 {
-	// fuzz_config found numFeatures * 3 overflowing an int (undefined behaviour: the sanitizer
-	// suite aborts on it). The count of corners detected saturates; the extraction works.
-	cv::Mat img(240, 320, CV_8UC1, cv::Scalar(0));
-	std::mt19937 rng(9);
-	std::uniform_int_distribution<int> x(0, 319), y(0, 239), s(5, 30), g(40, 255);
-	for (int i = 0; i < 150; i++)
+	cv::Mat img(height, width, CV_8UC1, cv::Scalar(0));
+	std::uniform_int_distribution<int> x(0, width - 1), y(0, height - 1), s(5, maxSide),
+	    g(greyLo, greyHi);
+	for (int i = 0; i < rects; i++)
 	{
 		const cv::Point a(x(rng), y(rng));
 		cv::rectangle(img, a, a + cv::Point(s(rng), s(rng)), cv::Scalar(g(rng)), cv::FILLED);
 	}
+	return img;
+}
+
+TEST(Orb, ExtractorTakesAnyFeatureCount)
+{
+	// fuzz_config found numFeatures * 3 overflowing an int (undefined behaviour: the sanitizer
+	// suite aborts on it). The count of corners detected saturates; the extraction works.
+	std::mt19937 rng(9);
+	const cv::Mat img = texturedImage(320, 240, 150, 30, 40, 255, rng);
 	features::OrbParams p;
 	p.numFeatures = std::numeric_limits<int>::max() / 2;
 	features::OrbExtractor orb(p);
@@ -308,14 +318,8 @@ TEST(Orb, ExtractorTakesAnyFeatureCount)
 
 TEST(Orb, ExtractorOnATexturedImage)
 {
-	cv::Mat img(480, 640, CV_8UC1, cv::Scalar(0));
 	std::mt19937 rng(8);
-	std::uniform_int_distribution<int> x(0, 639), y(0, 479), s(5, 40), g(40, 255);
-	for (int i = 0; i < 400; i++)
-	{
-		const cv::Point a(x(rng), y(rng));
-		cv::rectangle(img, a, a + cv::Point(s(rng), s(rng)), cv::Scalar(g(rng)), cv::FILLED);
-	}
+	const cv::Mat img = texturedImage(640, 480, 400, 40, 40, 255, rng);
 	features::OrbParams p;
 	p.numFeatures = 500;
 	features::OrbExtractor orb(p);
@@ -343,13 +347,7 @@ TEST(Orb, ExtractorOnATexturedImage)
 	ASSERT_EQ(kps2.size(), kps.size());
 	EXPECT_EQ(cv::norm(desc, desc2, cv::NORM_HAMMING), 0);
 	// Low contrast (steps of 8 to 14 grey levels): the FAST threshold is lowered.
-	cv::Mat faint(480, 640, CV_8UC1, cv::Scalar(0));
-	std::uniform_int_distribution<int> gf(8, 14);
-	for (int i = 0; i < 400; i++)
-	{
-		const cv::Point a(x(rng), y(rng));
-		cv::rectangle(faint, a, a + cv::Point(s(rng), s(rng)), cv::Scalar(gf(rng)), cv::FILLED);
-	}
+	const cv::Mat faint = texturedImage(640, 480, 400, 40, 8, 14, rng);
 	orb.extract(faint, kps, desc);
 	EXPECT_LT(orb.lastThreshold(), p.fastThreshold);
 	EXPECT_GT(kps.size(), 100u);
