@@ -2,6 +2,8 @@
 #include <rasterslam/sim/lidar_model.h>
 
 #include <algorithm>
+#include <Eigen/Core>
+#include <cmath>
 #include <stdexcept>
 
 namespace rasterslam::sim
@@ -20,6 +22,111 @@ LidarModel::LidarModel(std::string name, std::vector<double> elevationsDeg, int 
 		                            "': needs beams, azimuth steps "
 		                            "and 0 <= min range < max range");
 	std::sort(elevationsDeg_.begin(), elevationsDeg_.end());
+	originHeights_.assign(elevationsDeg_.size(), 0.0);
+}
+
+LidarModel LidarModel::fromRingOrderedScan(const std::string& name,
+                                           const std::vector<PointXYZI>& scan, int azimuthSteps,
+                                           double minRange_m, double maxRange_m)
+{
+	// Rings: a ring ends where the azimuth falls back by more than half a turn. A few points
+	// out of order (noise near the wrap) would start a ring of their own: a piece of fewer
+	// than kMinRing points stays with the ring before it.
+	constexpr std::size_t kMinRing = 100;
+	std::vector<std::vector<Eigen::Vector2d>> rings(1);  // (r_xy, z)
+	double prevAz = 0;
+	std::size_t fallsSeen = 0;
+	for (std::size_t i = 0; i < scan.size(); i++)
+	{
+		const auto& p = scan[i];
+		if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+			continue;
+		const double az = std::atan2(p.y, p.x);
+		const bool falls = i > 0 && az - prevAz < -M_PI;
+		fallsSeen += falls;
+		if (falls && rings.back().size() >= kMinRing)
+			rings.emplace_back();
+		prevAz = az;
+		const double rxy = std::hypot(p.x, p.y);
+		if (rxy >= 2.5 && rxy <= 80)
+			rings.back().emplace_back(rxy, p.z);
+	}
+	if (rings.size() < 4 || fallsSeen > 4 * rings.size())
+		throw std::invalid_argument("LidarModel '" + name + "': the scan has " +
+		                            std::to_string(rings.size()) +
+		                            " ring(s): its points are not stored ring after ring");
+	// The beams' common origin height, from the rings that see a spread of ranges (facades,
+	// not only the ground circle): z = h + r tan(elevation), least squares, twice, the second
+	// time without the points 0.1 m off the first line.
+	std::vector<double> heights;
+	for (const auto& ring : rings)
+	{
+		double n = 0, sr = 0, srr = 0;
+		for (const auto& q : ring)
+		{
+			n++;
+			sr += q.x();
+			srr += q.x() * q.x();
+		}
+		if (n < kMinRing || srr / n - (sr / n) * (sr / n) < 25)  // range spread under 5 m
+			continue;
+		double slope = 0, h = 0;
+		for (int round = 0; round < 2; round++)
+		{
+			double m = 0, a = 0, z = 0, aa = 0, az = 0;
+			for (const auto& q : ring)
+			{
+				if (round > 0 && std::abs(q.y() - h - slope * q.x()) > 0.1)
+					continue;
+				m++;
+				a += q.x();
+				z += q.y();
+				aa += q.x() * q.x();
+				az += q.x() * q.y();
+			}
+			const double det = m * aa - a * a;
+			if (m < 10 || det <= 0)
+				break;
+			slope = (m * az - a * z) / det;
+			h = (z - slope * a) / m;
+		}
+		heights.push_back(h);
+	}
+	double h0 = 0;
+	if (!heights.empty())
+	{
+		std::nth_element(heights.begin(), heights.begin() + heights.size() / 2, heights.end());
+		h0 = heights[heights.size() / 2];
+	}
+	// Each ring's elevation seen from that origin: the median over its points.
+	std::vector<double> el;
+	for (const auto& ring : rings)
+	{
+		if (ring.size() < kMinRing)
+			continue;  // a stub at the scan's start or end
+		// Far points where the ring has enough of them: an error in the origin height tilts
+		// the elevation of near ones most.
+		std::vector<double> e, eFar;
+		for (const auto& q : ring)
+		{
+			e.push_back(std::atan2(q.y() - h0, q.x()) * 180 / M_PI);
+			if (q.x() > 8)
+				eFar.push_back(e.back());
+		}
+		if (eFar.size() >= kMinRing)
+			e.swap(eFar);
+		std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
+		el.push_back(e[e.size() / 2]);
+	}
+	// A beam cut in two by the scan's start and end gives two rings: one elevation.
+	std::sort(el.begin(), el.end());
+	std::vector<double> beams;
+	for (const double e : el)
+		if (beams.empty() || e - beams.back() > 0.08)
+			beams.push_back(e);
+	LidarModel m(name, beams, azimuthSteps, minRange_m, maxRange_m);
+	m.originHeights_.assign(beams.size(), h0);
+	return m;
 }
 
 LidarModel LidarModel::hdl64()

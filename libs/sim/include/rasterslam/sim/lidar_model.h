@@ -1,6 +1,8 @@
 // Geometry of a spinning multi-beam LiDAR.
 #pragma once
 
+#include <rasterslam/core/types.h>
+
 #include <string>
 #include <vector>
 
@@ -19,12 +21,24 @@ class LidarModel
 	static LidarModel hdl64();
 	/** Velodyne VLP-16: 16 beams -15..+15 deg every 2 deg, 1800 steps (0.2 deg), 1..100 m. */
 	static LidarModel vlp16();
+	/** The beams of a real sensor measured from one of its scans, when the scan stores its
+	 *  points ring after ring, each ring one turn (as KITTI's HDL-64E scans do; a ring ends
+	 *  where the azimuth falls back by more than half a turn). The beams share one origin
+	 *  height (fitted as z = h + r_xy tan(elevation) on the rings that see a spread of ranges;
+	 *  a real HDL-64E's lasers sit 0.14-0.22 m above its base); a beam's elevation is the
+	 *  median over its ring's points from that origin, 2.5 to 80 m away. Throws
+	 *  std::invalid_argument when the scan has fewer than 4 rings. */
+	static LidarModel fromRingOrderedScan(const std::string& name,
+	                                      const std::vector<PointXYZI>& scan, int azimuthSteps,
+	                                      double minRange_m, double maxRange_m);
 	/** "hdl64" or "vlp16"; throws std::invalid_argument listing both otherwise. */
 	static LidarModel byName(const std::string& name);
 
 	const std::string& name() const { return name_; }
 	/** Ascending, degrees. */
 	const std::vector<double>& elevationsDeg() const { return elevationsDeg_; }
+	/** Height of each beam's origin in the sensor frame (same order; zeros unless measured). */
+	const std::vector<double>& originHeights_m() const { return originHeights_; }
 	int beamCount() const { return static_cast<int>(elevationsDeg_.size()); }
 	int azimuthSteps() const { return azimuthSteps_; }
 	double azimuthStepDeg() const { return 360.0 / azimuthSteps_; }
@@ -35,6 +49,7 @@ class LidarModel
    private:
 	std::string name_;
 	std::vector<double> elevationsDeg_;
+	std::vector<double> originHeights_;
 	int azimuthSteps_;
 	double minRange_, maxRange_;
 };
