@@ -66,6 +66,7 @@ Command addTraj(CLI::App& app);
 Command addLoops(CLI::App& app);
 Command addLocalMaps(CLI::App& app);
 Command addTimings(CLI::App& app);
+Command addReloc(CLI::App& app);
 
 // ---- option checks (CLI11 validators: failures are usage errors, exit 2) ----
 

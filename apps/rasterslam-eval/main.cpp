@@ -1,5 +1,5 @@
 // rasterslam-eval: accuracy and cost metrics of SLAM outputs. Subcommands: traj, loops,
-// localmaps, timings.
+// localmaps, timings, reloc.
 #include "cli.h"
 
 using namespace rasterslam_eval_cli;
@@ -11,7 +11,7 @@ int main(int argc, char** argv)
 	app.require_subcommand(1);
 	// Add subcommands here.
 	const std::vector<Command> commands = {addTraj(app), addLoops(app), addLocalMaps(app),
-	                                       addTimings(app)};
+	                                       addTimings(app), addReloc(app)};
 	app.footer(std::string("rasterslam-eval COMMAND --help shows the options of a command.\n\n") +
 	           cli::exitCodesFooter());
 

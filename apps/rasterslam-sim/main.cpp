@@ -2,8 +2,10 @@
 #include <mrpt/maps/registerAllClasses.h>
 #include <mrpt/obs/registerAllClasses.h>
 #include <rasterslam/cli/app.h>
+#include <rasterslam/io/kitti.h>
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/io/trajectory_io.h>
+#include <rasterslam/sim/cloud_world.h>
 #include <rasterslam/sim/simulator.h>
 
 #include <chrono>
@@ -25,6 +27,11 @@ const char* kDescription =
 struct Args
 {
 	std::string scenario, out, gtTum;
+	// --kitti: scans rendered from a real KITTI drive
+	std::string kitti, kittiPoses, at;
+	double every_m = 5;
+	std::vector<double> across{0, 3, -3, 6, -6};
+	bool sameOnly = false;
 	std::optional<long long> scans, seed;
 	std::optional<std::string> lidar;
 	int compress = 1;
@@ -42,8 +49,114 @@ void checkWritable(const std::string& path)
 		throw std::runtime_error(path + ": is a folder");
 }
 
+/** Query poses along a recorded route: every `every_m` metres, each lateral offset, facing
+ *  the route's way and (unless sameOnly) the other way. The offset is along the vehicle's y
+ *  axis (left), level: the height and tilt stay those of the route pose. */
+rasterslam::io::Trajectory revisitPoses(const rasterslam::io::Trajectory& route, const Args& a)
+{
+	rasterslam::io::Trajectory out;
+	double travelled = 0, next = 0;
+	for (std::size_t i = 0; i < route.size(); i++)
+	{
+		if (i > 0)
+			travelled += (route[i].pose.translation() - route[i - 1].pose.translation()).norm();
+		if (travelled + 1e-9 < next)
+			continue;
+		next = travelled + a.every_m;
+		for (const int dir : {1, -1})
+		{
+			if (dir < 0 && a.sameOnly)
+				continue;
+			for (const double d : a.across)
+			{
+				Eigen::Isometry3d T = route[i].pose;
+				T.translate(Eigen::Vector3d(0, d, 0));
+				if (dir < 0)
+					T.rotate(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()));
+				rasterslam::io::StampedPose sp;
+				sp.stamp = 1000.0 + 0.1 * static_cast<double>(out.size());
+				sp.pose = T;
+				out.push_back(sp);
+			}
+		}
+	}
+	return out;
+}
+
+/** --kitti: renders scans at other poses from the registered real scans of a KITTI folder. */
+int runKitti(const Args& args)
+{
+	using namespace rasterslam;
+	const std::string D = args.kitti;
+	const std::string posesFile =
+	    args.kittiPoses.empty() ? D + "/poses_semantickitti.txt" : args.kittiPoses;
+	checkWritable(args.out);
+	if (!args.gtTum.empty())
+		checkWritable(args.gtTum);
+	const auto bins = io::listKittiBins(D + "/velodyne");
+	const auto route = io::kittiCameraToVelodyne(io::loadTrajectory(posesFile),
+	                                             io::loadKittiCalibTr(D + "/calib.txt"));
+	if (route.size() < bins.size())
+		throw std::runtime_error(posesFile + ": " + std::to_string(route.size()) + " poses for " +
+		                         std::to_string(bins.size()) + " scans in " + D + "/velodyne");
+	const auto t0 = std::chrono::steady_clock::now();
+	sim::CloudWorld world;
+	std::vector<PointXYZI> first;
+	for (std::size_t i = 0; i < bins.size(); i++)
+	{
+		auto pts = io::loadKittiBin(bins[i]);
+		world.add(pts, route[i].pose);
+		if (i == 0)
+			first = std::move(pts);
+	}
+	const auto lidar = sim::LidarModel::fromRingOrderedScan("kitti-hdl64", first, 2083, 2.5, 120);
+	io::Trajectory queries;
+	if (!args.at.empty())
+		queries = io::loadTrajectory(args.at);
+	else
+		queries = revisitPoses(io::Trajectory(route.begin(), route.begin() + bins.size()), args);
+	if (queries.empty())
+		throw std::runtime_error("no poses to render");
+	const double tWorld =
+	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+	std::cerr << "rasterslam-sim: " << D << ": " << bins.size() << " scans merged into "
+	          << world.size() << " voxels, " << lidar.beamCount() << " beams measured; rendering "
+	          << queries.size() << " scans\n";
+	io::RawlogWriter writer(args.out, args.compress);
+	std::size_t totalPoints = 0;
+	const auto tStart = std::chrono::steady_clock::now();
+	for (std::size_t k = 0; k < queries.size(); k++)
+	{
+		Scan scan;
+		scan.index = k;
+		scan.stamp = queries[k].stamp;
+		scan.sensorLabel = "LIDAR";
+		scan.points = world.render(queries[k].pose, lidar);
+		scan.groundTruth =
+		    mrpt::poses::CPose3D(mrpt::math::CMatrixDouble44(queries[k].pose.matrix()));
+		totalPoints += scan.points.size();
+		writer.writeScan(scan);
+	}
+	writer.close();
+	if (!args.gtTum.empty())
+		io::saveTrajectoryTum(args.gtTum, queries);
+	const double elapsed =
+	    std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
+	std::printf(
+	    "wrote %s: %zu scans, %.0f points/scan; cloud %.2f s; %.1f s rendering and "
+	    "writing: %.1f scans/s\n",
+	    args.out.c_str(), queries.size(),
+	    static_cast<double>(totalPoints) / static_cast<double>(queries.size()), tWorld, elapsed,
+	    static_cast<double>(queries.size()) / elapsed);
+	if (!args.gtTum.empty())
+		std::printf("ground truth: %s\n", args.gtTum.c_str());
+	return 0;
+}
+
 int run(const Args& args)
 {
+	if (!args.kitti.empty())
+		return runKitti(args);
 	using namespace rasterslam;
 	sim::Scenario sc = sim::loadScenario(args.scenario);
 	if (args.scans)
@@ -115,10 +228,46 @@ int main(int argc, char** argv)
 	Args args;
 	CLI::App app(kDescription, "rasterslam-sim");
 	cli::configure(app);
-	app.add_option("--scenario", args.scenario, "scenario YAML (keys: rawlogs/README.md)")
-	    ->required()
+	auto* scenario =
+	    app.add_option("--scenario", args.scenario, "scenario YAML (keys: rawlogs/README.md)")
+	        ->check(CLI::ExistingFile.description(""))
+	        ->type_name("FILE");
+	auto* kitti =
+	    app.add_option("--kitti", args.kitti,
+	                   "instead of a scenario: a KITTI folder (velodyne/, calib.txt, poses) whose "
+	                   "registered scans are merged into one cloud, rendered at other poses")
+	        ->check(CLI::ExistingDirectory.description(""))
+	        ->type_name("DIR")
+	        ->excludes(scenario);
+	scenario->excludes(kitti);
+	app.add_option("--kitti-poses", args.kittiPoses,
+	               "--kitti: cam0 poses of the scans (default DIR/poses_semantickitti.txt)")
 	    ->check(CLI::ExistingFile.description(""))
-	    ->type_name("FILE");
+	    ->type_name("FILE")
+	    ->needs(kitti);
+	auto* at = app.add_option("--at", args.at,
+	                          "--kitti: render at these Velodyne-frame poses (TUM or KITTI file) "
+	                          "instead of the revisit grid")
+	               ->check(CLI::ExistingFile.description(""))
+	               ->type_name("FILE")
+	               ->needs(kitti);
+	app.add_option("--every", args.every_m,
+	               "--kitti revisit grid: a pose every M metres of the route (default 5)")
+	    ->check(CLI::Range(0.1, 1e6).description(""))
+	    ->type_name("M")
+	    ->needs(kitti)
+	    ->excludes(at);
+	app.add_option("--across", args.across,
+	               "--kitti revisit grid: lateral offsets in metres, left positive (default "
+	               "0,3,-3,6,-6)")
+	    ->delimiter(',')
+	    ->type_name("LIST")
+	    ->needs(kitti)
+	    ->excludes(at);
+	app.add_flag("--same-direction", args.sameOnly,
+	             "--kitti revisit grid: only the route's direction (default: both)")
+	    ->needs(kitti)
+	    ->excludes(at);
 	app.add_option("-o,--out", args.out, "output rawlog")->required()->type_name("FILE");
 	app.add_option("--scans", args.scans, "override the scenario's scan count (1 or more)")
 	    ->check(CLI::Range(1LL, 100000000LL).description(""))
@@ -137,6 +286,12 @@ int main(int argc, char** argv)
 	    ->type_name("FILE");
 	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
 		return rc;
+	if (args.scenario.empty() && args.kitti.empty())
+		cli::usageError("rasterslam-sim", "give --scenario FILE or --kitti DIR");
+	if (!args.kitti.empty() && (args.scans || args.seed || args.lidar))
+		cli::usageError("rasterslam-sim",
+		                "--scans, --seed and --lidar belong to --scenario: --kitti renders the "
+		                "measured HDL-64E at the poses of --at or of the revisit grid");
 
 	// Debian links with --as-needed: without these calls the classes are not registered.
 	mrpt::maps::registerAllClasses_mrpt_maps();

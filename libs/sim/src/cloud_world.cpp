@@ -1,6 +1,7 @@
 // Rendering new scans from a cloud of real ones (see cloud_world.h).
 #include <rasterslam/sim/cloud_world.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -106,6 +107,43 @@ void CloudWorld::finalize() const
 		columns_[byColumn[i].first].second = i + 1;
 		points_.push_back(byColumn[i].second);
 	}
+	// Normals: the plane of the voxels in the 3 x 3 x 3 block around each one.
+	std::unordered_map<std::int64_t, std::uint32_t> index;
+	index.reserve(points_.size());
+	for (std::size_t i = 0; i < points_.size(); i++)
+		index[voxelKey(points_[i].x, points_[i].y, points_[i].z, p_.voxel_m)] =
+		    static_cast<std::uint32_t>(i);
+	normals_.assign(points_.size(), Eigen::Vector3f::Zero());
+	const double v = p_.voxel_m;
+	for (std::size_t i = 0; i < points_.size(); i++)
+	{
+		const auto& c = points_[i];
+		Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+		Eigen::Matrix3f cov = Eigen::Matrix3f::Zero();
+		int n = 0;
+		for (int dx = -1; dx <= 1; dx++)
+			for (int dy = -1; dy <= 1; dy++)
+				for (int dz = -1; dz <= 1; dz++)
+				{
+					const auto it =
+					    index.find(voxelKey(c.x + dx * v, c.y + dy * v, c.z + dz * v, v));
+					if (it == index.end())
+						continue;
+					const auto& q = points_[it->second];
+					const Eigen::Vector3f x(q.x, q.y, q.z);
+					mean += x;
+					cov += x * x.transpose();
+					n++;
+				}
+		if (n < 5)
+			continue;
+		mean /= static_cast<float>(n);
+		cov = cov / static_cast<float>(n) - mean * mean.transpose();
+		const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> es(cov);
+		// A plane: the smallest spread well below the middle one (not a line, not a blob).
+		if (es.eigenvalues()(0) < 0.25f * es.eigenvalues()(1))
+			normals_[i] = es.eigenvectors().col(0);
+	}
 	dirty_ = false;
 }
 
@@ -118,8 +156,8 @@ std::vector<PointXYZI> CloudWorld::render(const Eigen::Isometry3d& T_world_senso
 	const double azStep = 2 * M_PI / W;
 	std::vector<double> el(static_cast<std::size_t>(H));
 	for (int b = 0; b < H; b++)
-		el[static_cast<std::size_t>(b)] = lidar.elevationsDeg()[static_cast<std::size_t>(b)] *
-		                                   M_PI / 180;
+		el[static_cast<std::size_t>(b)] =
+		    lidar.elevationsDeg()[static_cast<std::size_t>(b)] * M_PI / 180;
 	const auto& origin = lidar.originHeights_m();
 	double hMean = 0, hSpread = 0;
 	for (const double o : origin)
@@ -128,6 +166,8 @@ std::vector<PointXYZI> CloudWorld::render(const Eigen::Isometry3d& T_world_senso
 		hSpread = std::max(hSpread, std::abs(o - hMean));
 	constexpr float kInf = std::numeric_limits<float>::infinity();
 	std::vector<float> range(static_cast<std::size_t>(W * H), kInf), inten(range.size(), 0);
+	constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+	std::vector<std::uint32_t> winner(range.size(), kNone);
 	const auto cell = [W](int b, int c) { return static_cast<std::size_t>(b * W + c); };
 
 	const Eigen::Isometry3d T_sw = T_world_sensor.inverse();
@@ -140,7 +180,7 @@ std::vector<PointXYZI> CloudWorld::render(const Eigen::Isometry3d& T_world_senso
 	const Eigen::Matrix3f R = T_sw.linear().cast<float>();
 	const Eigen::Vector3f t = T_sw.translation().cast<float>();
 	// A voxel covers about its half diagonal around its centre, seen from range r.
-	const double footprint = 0.87 * p_.voxel_m;
+	const double footprint = 0.35 * p_.voxel_m;
 	for (std::int64_t cx = c0x; cx <= c1x; cx++)
 		for (std::int64_t cy = c0y; cy <= c1y; cy++)
 		{
@@ -153,7 +193,8 @@ std::vector<PointXYZI> CloudWorld::render(const Eigen::Isometry3d& T_world_senso
 				const Eigen::Vector3f q = R * Eigen::Vector3f(p.x, p.y, p.z) + t;
 				const double rxy = std::hypot(q.x(), q.y());
 				// The elevation seen from the mean origin, then beam by beam from its own.
-				const double e0 = std::atan2(q.z() - hMean, rxy), r0 = std::hypot(rxy, q.z() - hMean);
+				const double e0 = std::atan2(q.z() - hMean, rxy),
+				             r0 = std::hypot(rxy, q.z() - hMean);
 				if (r0 < rMin || r0 > rMax)
 					continue;
 				st.candidates++;
@@ -180,6 +221,7 @@ std::vector<PointXYZI> CloudWorld::render(const Eigen::Isometry3d& T_world_senso
 						{
 							range[k] = rf;
 							inten[k] = p.intensity;
+							winner[k] = static_cast<std::uint32_t>(i);
 						}
 					}
 				}
@@ -220,6 +262,7 @@ std::vector<PointXYZI> CloudWorld::render(const Eigen::Isometry3d& T_world_senso
 			float n1 = rowGap ? l : u, n2 = rowGap ? rr : d;
 			if (agree(n1, n2))
 			{
+				winner[cell(b, a)] = kNone;
 				out[cell(b, a)] = 0.5f * (n1 + n2);
 				const auto from = rowGap ? cell(b, (a + W - 1) % W) : cell(std::max(b - 1, 0), a);
 				if (!std::isfinite(r) || inten[cell(b, a)] == 0)
@@ -242,10 +285,27 @@ std::vector<PointXYZI> CloudWorld::render(const Eigen::Isometry3d& T_world_senso
 		             se = std::sin(el[static_cast<std::size_t>(b)]);
 		for (int a = 0; a < W; a++)
 		{
-			const float r = out[cell(b, a)];
+			float r = out[cell(b, a)];
 			if (!std::isfinite(r))
 				continue;
 			const double az = (a + 0.5) * azStep - M_PI;
+			if (const auto w = winner[cell(b, a)]; w != kNone && !normals_[w].isZero())
+			{
+				// Where the ray meets the winner's plane, unless that is far off its range.
+				const Eigen::Vector3d d(ce * std::cos(az), ce * std::sin(az), se),
+				    o(0, 0, origin[static_cast<std::size_t>(b)]);
+				const auto& q = points_[w];
+				const Eigen::Vector3d pw(q.x, q.y, q.z);
+				const Eigen::Vector3d ps = T_sw * pw,
+				                      n = T_sw.linear() * normals_[w].cast<double>();
+				const double den = n.dot(d);
+				if (std::abs(den) > 0.02)
+				{
+					const double t = n.dot(ps - o) / den;
+					if (t > rMin && std::abs(t - r) < 2.0)
+						r = static_cast<float>(t);
+				}
+			}
 			PointXYZI p;
 			p.x = static_cast<float>(r * ce * std::cos(az));
 			p.y = static_cast<float>(r * ce * std::sin(az));

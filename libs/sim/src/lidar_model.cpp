@@ -1,8 +1,8 @@
 // The two Velodyne models the project simulates.
 #include <rasterslam/sim/lidar_model.h>
 
-#include <algorithm>
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 

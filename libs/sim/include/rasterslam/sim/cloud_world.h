@@ -52,8 +52,10 @@ class CloudWorld
 
 	/** A scan as `lidar` at T_world_sensor would see the cloud, points in the sensor frame.
 	 *  Each map voxel is splatted over the beam x azimuth cells its footprint covers and the
-	 *  nearest one wins (a z-buffer); a cell's point lies on the cell's own ray at that range,
-	 *  so the scan has the sensor's beam pattern. A cell whose neighbours on both sides (in
+	 *  nearest one wins (a z-buffer); a cell's point lies on the cell's own ray where the ray
+	 *  meets the winner's surface (its plane from the neighbouring voxels; its range where no
+	 *  plane is known), so the scan has the sensor's beam pattern and a road seen at a grazing
+	 *  angle is not raised by the voxel's footprint. A cell whose neighbours on both sides (in
 	 *  its row or its column) are much nearer looks through a gap of the sparse cloud: it is
 	 *  given their range when they agree, and removed when not. */
 	std::vector<PointXYZI> render(const Eigen::Isometry3d& T_world_sensor, const LidarModel& lidar,
@@ -73,6 +75,8 @@ class CloudWorld
 	CloudWorldParams p_;
 	std::unordered_map<std::int64_t, Accum> voxels_;
 	mutable std::vector<PointXYZI> points_;  //!< voxel means, grouped by column
+	/** Surface normal at each voxel (zero where its neighbours fix no plane). */
+	mutable std::vector<Eigen::Vector3f> normals_;
 	/** Column key -> [begin, end) in points_. */
 	mutable std::unordered_map<std::int64_t, std::pair<std::size_t, std::size_t>> columns_;
 	mutable bool dirty_ = false;
