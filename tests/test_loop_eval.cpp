@@ -232,6 +232,7 @@ TEST(LoopEval, RecentCandidatesAreNeitherPositiveNorDetections)
 	// become positives (the pose 0.2 s back is within 4 m).
 	eval::LoopEvalParams p;
 	p.exclude_s = 0.1;
+	p.registration_m = 0;  // by distance: these lines carry no registration (identity)
 	const auto r2 = eval::evaluateLoops(logOf(lines), twoLaps(), p);
 	EXPECT_EQ(r2.recentLines, 0u);
 	EXPECT_EQ(r2.positives, 29u);
@@ -436,7 +437,8 @@ TEST(LoopEvalCli, WritesCsvPlotAndJson)
 		lines.push_back({40.0 + k, k + 5.0, 0.2 + 0.01 * (k - 20), true, false});
 	const std::string loops = writeFile(dir / "loops.txt", loopsText(lines));
 	const std::string csv = (dir / "pr.csv").string(), png = (dir / "pr.png").string();
-	const std::string base = evalBin() + " loops --loops " + loops + " --gt " + gt;
+	// By distance: the lines carry no registration (identity poses).
+	const std::string base = evalBin() + " loops --registration 0 --loops " + loops + " --gt " + gt;
 
 	auto res = test::runCommand(base + " --csv " + csv + " --plot " + png);
 	ASSERT_EQ(res.exitCode, 0) << res.output;
@@ -527,4 +529,52 @@ TEST(LoopEvalCli, ExitCodes)
 	res = test::runCommand(evalBin() + " --help");
 	EXPECT_NE(res.output.find("loops"), std::string::npos);
 	EXPECT_NE(res.output.find("traj"), std::string::npos);
+}
+
+// The truth of a verified line is its registration: right 8 m away is a correct loop (and a
+// positive), wrong 1 m away is a wrong one.
+TEST(LoopEval, RegistrationDecidesVerifiedLines)
+{
+	const auto gt = twoLaps();
+	const auto at = [&](double t)
+	{ return gt[static_cast<std::size_t>(std::lround(t * 10))].pose; };
+	std::string text =
+	    "# query_stamp candidate_stamp score inliers verified accepted reason x y z qx qy qz qw\n";
+	const auto line = [&](double q, double c, const Eigen::Isometry3d& T, bool accepted)
+	{
+		const Eigen::Quaterniond r(T.linear());
+		char buf[256];
+		std::snprintf(buf, sizeof(buf),
+		              "%.6f %.6f 0.7 40 1 %d ok %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", kT0 + q,
+		              kT0 + c, accepted ? 1 : 0, T.translation().x(), T.translation().y(),
+		              T.translation().z(), r.x(), r.y(), r.z(), r.w());
+		text += buf;
+	};
+	// Query at 41 s (1 lap + 1 s: 10 m along the square), candidate at 0.2 s: 8 m apart.
+	line(41, 0.2, at(0.2).inverse() * at(41), true);
+	// Query at 50 s, candidate at 10 s (the same place), registered 1.5 m off.
+	Eigen::Isometry3d off = at(10).inverse() * at(50);
+	off.translation().x() += 1.5;
+	line(50, 10, off, true);
+	// Query at 39.2 s, candidate at 0 s: 8 m apart, no place within 4 m 30 s older.
+	line(39.2, 0, at(0).inverse() * at(39.2), true);
+	std::istringstream in(text);
+	const auto log = eval::parseLoopLog(in, "mem/loops.txt");
+
+	const auto r = eval::evaluateLoops(log, gt);
+	EXPECT_EQ(r.registeredLines, 3u);
+	EXPECT_EQ(r.registeredFar, 2u);
+	EXPECT_EQ(r.acceptedWrong, 1u);
+	EXPECT_EQ(r.detector.tp, 2u);
+	EXPECT_EQ(r.detector.fp, 1u);
+	EXPECT_EQ(r.positives, 3u);  // 39.2 s by its registration
+	// By distance (4 m) they are judged the other way round.
+	eval::LoopEvalParams byDistance;
+	byDistance.registration_m = 0;
+	const auto d = eval::evaluateLoops(log, gt, byDistance);
+	EXPECT_EQ(d.registeredLines, 0u);
+	EXPECT_EQ(d.acceptedWrong, 2u);
+	EXPECT_EQ(d.detector.tp, 1u);
+	EXPECT_EQ(d.detector.fp, 2u);
+	EXPECT_EQ(d.positives, 2u);
 }

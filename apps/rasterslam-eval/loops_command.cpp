@@ -11,8 +11,11 @@ const char* kLoopsAbout =
     "candidate the detector examined), G (--gt) the ground truth (TUM; a run's groundtruth.tum). "
     "A query is positive when the ground truth holds a pose at least --exclude-s older within "
     "--distance of it. A detection is a query's highest-scoring candidate; it is correct when "
-    "the two places are within --distance (candidates less than --exclude-s older than the query "
-    "are ignored).\n"
+    "its registration (the pose of the query in the candidate's frame) is within "
+    "--registration metres and --registration-deg degrees of the ground truth's, however far "
+    "apart the places are, and then its query counts as a positive too; a line without a "
+    "registration, or every line with --registration 0, is correct when the two places are "
+    "within --distance (candidates less than --exclude-s older than the query are ignored).\n"
     "detector: the detector's own decisions (accepted lines);\n"
     "sweep: per score threshold, the best verified candidate with score >= threshold; every "
     "distinct score of F and +inf; F1 max (ties: higher precision).";
@@ -79,6 +82,10 @@ int runLoops(const LoopsOptions& o)
 		j["distance_m"] = jsonNumber(params.distance_m);
 		j["exclude_s"] = jsonNumber(params.exclude_s);
 		j["max_dt"] = jsonNumber(params.maxDt);
+		j["registration_m"] = jsonNumber(params.registration_m);
+		j["registration_deg"] = jsonNumber(params.registration_deg);
+		j["registered_lines"] = r.registeredLines;
+		j["registered_far"] = r.registeredFar;
 		j["lines"] = r.lines;
 		j["queries"] = r.queries;
 		j["positives"] = r.positives;
@@ -107,8 +114,13 @@ int runLoops(const LoopsOptions& o)
 	std::cout << "loops        : " << loopsPath << " (" << r.lines << " candidate lines, "
 	          << r.queries << " queries)\n"
 	          << "ground truth : " << gtPath << " (" << gt.size() << " poses)\n"
-	          << "criteria     : correct within " << params.distance_m << " m, places younger than "
-	          << params.exclude_s << " s excluded (" << r.recentLines << " lines ignored)\n"
+	          << "criteria     : correct within " << params.distance_m << " m";
+	if (params.registration_m > 0)
+		std::cout << " or registered within " << params.registration_m << " m and "
+		          << params.registration_deg << " deg (" << r.registeredLines << " registrations, "
+		          << r.registeredFar << " correct farther than " << params.distance_m << " m)";
+	std::cout << ", places younger than " << params.exclude_s << " s excluded (" << r.recentLines
+	          << " lines ignored)\n"
 	          << "positives    : " << r.positives << " of " << r.queries << " queries\n"
 	          << "detector     : precision " << rate(d.precision, true) << ", recall "
 	          << rate(d.recall, d.valid) << " (tp " << d.tp << ", fp " << d.fp << ", fn " << d.fn
@@ -149,6 +161,17 @@ Command addLoops(CLI::App& app)
 	sub->add_option("--distance", o->params.distance_m, "largest distance of a correct loop (m)")
 	    ->check(nonNegativeNumber())
 	    ->type_name("M")
+	    ->capture_default_str();
+	sub->add_option("--registration", o->params.registration_m,
+	                "largest translation error of a correct registration (m); 0: judge by "
+	                "--distance only")
+	    ->check(nonNegativeNumber())
+	    ->type_name("M")
+	    ->capture_default_str();
+	sub->add_option("--registration-deg", o->params.registration_deg,
+	                "largest rotation error of a correct registration (deg)")
+	    ->check(nonNegativeNumber())
+	    ->type_name("DEG")
 	    ->capture_default_str();
 	sub->add_option("--exclude-s", o->params.exclude_s,
 	                "places younger than S seconds are no loops")

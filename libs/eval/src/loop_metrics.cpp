@@ -70,6 +70,7 @@ class GroundTruthIndex
 		{
 			stamps_.push_back(gt[i].stamp);
 			positions_.push_back(gt[i].pose.translation());
+			poses_.push_back(gt[i].pose);
 		}
 	}
 
@@ -102,6 +103,7 @@ class GroundTruthIndex
 
 	double stamp(std::size_t i) const { return stamps_[i]; }
 	const Eigen::Vector3d& position(std::size_t i) const { return positions_[i]; }
+	const Eigen::Isometry3d& pose(std::size_t i) const { return poses_[i]; }
 
 	/** True when a pose at least excludeS older than `t` lies within distance of `p`. */
 	bool hasOldPlaceNear(double t, const Eigen::Vector3d& p, double excludeS, double distance) const
@@ -121,6 +123,7 @@ class GroundTruthIndex
 	double maxDt_;
 	std::vector<double> stamps_;
 	std::vector<Eigen::Vector3d> positions_;
+	std::vector<Eigen::Isometry3d> poses_;
 };
 
 PrPoint makePoint(double threshold, std::size_t tp, std::size_t fp, std::size_t positives)
@@ -154,6 +157,7 @@ struct Query
 	double stamp = 0;
 	std::size_t gt = 0;
 	Detection verified, accepted;
+	bool registeredOld = false;  //!< an old enough candidate was registered correctly
 };
 }  // namespace
 
@@ -248,7 +252,18 @@ LoopEvalResult evaluateLoops(const LoopLog& log, const io::Trajectory& groundTru
 		if (!c.hasCandidate())
 			continue;
 		const std::size_t cg = gt.find(c.candidateStamp, "candidate stamp", log, c.line);
-		const bool correct = (gt.position(cg) - gt.position(q.gt)).squaredNorm() <= d2;
+		const bool near = (gt.position(cg) - gt.position(q.gt)).squaredNorm() <= d2;
+		bool correct = near;
+		const bool byRegistration = params.registration_m > 0 && c.verified;
+		if (byRegistration)
+		{
+			const Eigen::Isometry3d truth = gt.pose(cg).inverse() * gt.pose(q.gt);
+			const Eigen::Isometry3d E = truth.inverse() * c.T_candidate_query;
+			correct = E.translation().norm() <= params.registration_m &&
+			          Eigen::AngleAxisd(E.linear()).angle() * 180 / M_PI <= params.registration_deg;
+			++r.registeredLines;
+			r.registeredFar += correct && !near;
+		}
 		if (c.accepted)
 		{
 			++r.acceptedLines;
@@ -267,6 +282,8 @@ LoopEvalResult evaluateLoops(const LoopLog& log, const io::Trajectory& groundTru
 		}
 		// Strictly greater: on equal scores the first line of the file wins, as a detector
 		// scanning its candidates in order would keep it.
+		if (byRegistration && correct)
+			q.registeredOld = true;
 		if (c.verified && c.score > q.verified.score)
 			q.verified = {c.score, correct};
 		if (c.accepted && c.score > q.accepted.score)
@@ -275,8 +292,8 @@ LoopEvalResult evaluateLoops(const LoopLog& log, const io::Trajectory& groundTru
 	r.queries = queries.size();
 	for (const auto& q : queries)
 	{
-		if (gt.hasOldPlaceNear(gt.stamp(q.gt), gt.position(q.gt), params.exclude_s,
-		                       params.distance_m))
+		if (q.registeredOld || gt.hasOldPlaceNear(gt.stamp(q.gt), gt.position(q.gt),
+		                                          params.exclude_s, params.distance_m))
 			++r.positives;
 	}
 

@@ -54,6 +54,13 @@ struct LoopEvalParams
 	double exclude_s = 30.0;
 	/** Largest difference between a loops.txt stamp and the nearest ground-truth stamp. */
 	double maxDt = 0.02;
+	/** A verified line (one with a registration) is judged by its registration instead: it is
+	 *  correct when its pose of the query in the candidate's frame is within registration_m
+	 *  and registration_deg of the ground truth's, however far apart the places are (a
+	 *  correct registration proves that the two scans overlap), and its query then counts as
+	 *  a positive. 0 judges every line by distance_m alone. */
+	double registration_m = 1.0;
+	double registration_deg = 5.0;
 };
 
 /** Counts and rates at one decision rule. */
@@ -75,9 +82,13 @@ struct LoopEvalResult
 	/** Candidate lines ignored because the candidate is less than exclude_s older than the
 	 *  query; acceptedRecent of them were accepted (a detector bug worth seeing). */
 	std::size_t recentLines = 0, acceptedRecent = 0;
-	/** Accepted lines (loop edges) and how many of them join places farther apart than
-	 *  distance_m: every one of those is a wrong edge in the pose graph. */
+	/** Accepted lines (loop edges) and how many of them are wrong (registration off, or
+	 *  places farther apart than distance_m when judged by distance): every one of those is
+	 *  a wrong edge in the pose graph. */
 	std::size_t acceptedLines = 0, acceptedWrong = 0;
+	/** Verified lines judged by their registration, and how many of those were correct
+	 *  farther than distance_m apart (the revisits a distance test would call wrong). */
+	std::size_t registeredLines = 0, registeredFar = 0;
 	/** The detector's own decision: per query, its highest-scoring accepted line. */
 	PrPoint detector;
 	/** Per query, its highest-scoring verified line with score >= threshold; one row per
@@ -92,7 +103,8 @@ struct LoopEvalResult
 /** Evaluates the log against the ground truth (any order of stamps). Every stamp of a line
  *  must have a ground-truth pose within maxDt, else std::runtime_error names the stamp, the
  *  file and the line. A query is positive when a ground-truth pose at least exclude_s older than
- *  it lies within distance_m of it; every ground-truth pose counts as a place. */
+ *  it lies within distance_m of it, or (registration_m > 0) one of its old enough candidates
+ *  is registered correctly; every ground-truth pose counts as a place. */
 LoopEvalResult evaluateLoops(const LoopLog& log, const io::Trajectory& groundTruth,
                              const LoopEvalParams& params = {});
 
