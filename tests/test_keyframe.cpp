@@ -30,6 +30,10 @@ TEST(Keyframe, SerializationRoundTrip)
 		for (int b = 0; b < 32; b++)
 			k.descriptors.push_back(static_cast<uint8_t>(i * 32 + b));
 	}
+	k.groundValid = true;
+	k.groundN[0] = 0.6f;
+	k.groundN[2] = 0.8f;
+	k.groundD = 1.73f;
 	mrpt::io::CMemoryStream buf;
 	auto arch = mrpt::serialization::archiveFrom(buf);
 	arch << k;
@@ -42,6 +46,9 @@ TEST(Keyframe, SerializationRoundTrip)
 	Keyframe other = k;
 	other.descriptors[40] ^= 1;
 	EXPECT_FALSE(other == k);  // operator== looks at the descriptors
+	other = k;
+	other.groundD = 1.5f;
+	EXPECT_FALSE(other == k);  // and at the ground plane
 
 	// An unknown version: the byte after the class name in MRPT's object header.
 	const std::string name = "rasterslam::Keyframe";
@@ -49,7 +56,7 @@ TEST(Keyframe, SerializationRoundTrip)
 	const std::string raw(reinterpret_cast<const char*>(bytes), buf.getTotalBytesCount());
 	const auto at = raw.find(name);
 	ASSERT_NE(at, std::string::npos);
-	ASSERT_EQ(bytes[at + name.size()], 1);  // version 1
+	ASSERT_EQ(bytes[at + name.size()], 2);  // version 2
 	bytes[at + name.size()] = 9;
 	buf.Seek(0);
 	EXPECT_ANY_THROW(arch.ReadObject());
@@ -69,4 +76,12 @@ TEST(Keyframe, SerializationRoundTrip)
 	arch3 << bad2;
 	buf3.Seek(0);
 	EXPECT_ANY_THROW(arch3.ReadObject());
+	// A ground normal that is not unit is refused.
+	Keyframe bad3 = k;
+	bad3.groundN[2] = 2;
+	mrpt::io::CMemoryStream buf4;
+	auto arch4 = mrpt::serialization::archiveFrom(buf4);
+	arch4 << bad3;
+	buf4.Seek(0);
+	EXPECT_ANY_THROW(arch4.ReadObject());
 }

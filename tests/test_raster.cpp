@@ -164,6 +164,33 @@ TEST(RasterGround, TooFewCandidatesOrTooSteep)
 	EXPECT_FALSE(raster::fitGroundPlane(pts, g, 1).valid);
 }
 
+// Two scans of one flat road: the planes give the height, roll and pitch back.
+TEST(RasterGround, AlignGroundPlanesFixesHeightAndTilt)
+{
+	// The road z = -1.7 in the reference frame; the current sensor stands 4 m ahead and 1 m
+	// left of it, level, so it sees the road 1.7 m below too.
+	const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+	Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
+	truth.translation() = Eigen::Vector3d(4, 1, 0);
+	truth.rotate(Eigen::AngleAxisd(0.3, up));
+	// An estimate 0.4 m too high, rolled by 2 degrees.
+	Eigen::Isometry3d est = truth;
+	est.translation().z() += 0.4;
+	est.rotate(Eigen::AngleAxisd(2 * M_PI / 180, Eigen::Vector3d::UnitX()));
+	double angle = 0;
+	const auto fixed = raster::alignGroundPlanes(est, up, 1.7, up, 1.7, 5.0, &angle);
+	ASSERT_TRUE(fixed);
+	EXPECT_NEAR(angle, 2.0, 1e-6);
+	EXPECT_NEAR(fixed->translation().z(), 0, 1e-9);
+	// The turn is about the reference's origin: x and y move by 1.4 cm here.
+	EXPECT_LT((fixed->translation() - truth.translation()).norm(), 0.02);
+	EXPECT_LT(Eigen::AngleAxisd(fixed->linear().transpose() * truth.linear()).angle(), 1e-6);
+	// A tilt beyond the bound is refused, with its angle.
+	const auto refused = raster::alignGroundPlanes(est, up, 1.7, up, 1.7, 1.0, &angle);
+	EXPECT_FALSE(refused);
+	EXPECT_NEAR(angle, 2.0, 1e-6);
+}
+
 TEST(RasterProjection, BevPixelsByHand)
 {
 	raster::RasterParams p;  // BEV, 0.2 m, 50 m: a 500 x 500 image

@@ -296,9 +296,11 @@ TEST(Relocalization, KittiStreetRevisitsRenderedFromRealScans)
 	std::printf("%s\n", r.output.c_str());
 	const auto queries = j["queries"].get<std::size_t>();
 	ASSERT_EQ(queries, 80u);  // 8 places (82.8 m) x 5 offsets x 2 directions
-	// README: 95 % of these revisits relocalized within 0.3 m and 1 degree, none wrong.
+	// README: 79 of these 80 revisits relocalized within 0.3 m and 1 degree, none wrong
+	// (goal: 90 %); the height from the ground planes, median error 0.04 m.
 	EXPECT_GE(j["correct"].get<double>(), 0.9 * static_cast<double>(queries));
 	EXPECT_EQ(j["wrong"].get<std::size_t>(), 0u);
+	EXPECT_LT(j["median_height_m"].get<double>(), 0.06);
 	// The opposite direction is there and is found too.
 	std::size_t opposite = 0, oppositeCorrect = 0;
 	for (const auto& [k, g] : j["groups"].items())

@@ -4,6 +4,8 @@
 #include <rasterslam/map/keyframe.h>
 #include <rasterslam/map/registration.h>
 
+#include <cmath>
+
 using namespace rasterslam;
 
 IMPLEMENTS_SERIALIZABLE(Keyframe, mrpt::serialization::CSerializable, rasterslam)
@@ -15,13 +17,13 @@ RASTERSLAM_REGISTER_CLASSES(register_rasterslam_keyframe)
 
 uint8_t Keyframe::serializeGetVersion() const
 {
-	return 1;
+	return 2;
 }
 
 void Keyframe::serializeTo(mrpt::serialization::CArchive& out) const
 {
 	out << id << session << scanIndex << stamp << pose << u << v << angle << response << octave
-	    << xyz << descriptors;
+	    << xyz << descriptors << groundValid << groundN[0] << groundN[1] << groundN[2] << groundD;
 }
 
 void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -30,6 +32,7 @@ void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	{
 		case 0:
 		case 1:
+		case 2:
 			in >> id;
 			if (version >= 1)
 				in >> session;
@@ -37,6 +40,18 @@ void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 				session = 0;
 			in >> scanIndex >> stamp >> pose >> u >> v >> angle >> response >> octave >> xyz >>
 			    descriptors;
+			groundValid = false;
+			groundN[0] = groundN[1] = 0;
+			groundN[2] = 1;
+			groundD = 0;
+			if (version >= 2)
+			{
+				in >> groundValid >> groundN[0] >> groundN[1] >> groundN[2] >> groundD;
+				const float norm = std::sqrt(groundN[0] * groundN[0] + groundN[1] * groundN[1] +
+				                             groundN[2] * groundN[2]);
+				if (groundValid && (!(std::abs(norm - 1) < 1e-3f) || !std::isfinite(groundD)))
+					THROW_EXCEPTION("rasterslam::Keyframe: ground normal not unit in the stream");
+			}
 			break;
 		default:
 			MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
@@ -51,7 +66,9 @@ bool Keyframe::operator==(const Keyframe& o) const
 {
 	return id == o.id && session == o.session && scanIndex == o.scanIndex && stamp == o.stamp &&
 	       pose == o.pose && u == o.u && v == o.v && angle == o.angle && response == o.response &&
-	       octave == o.octave && xyz == o.xyz && descriptors == o.descriptors;
+	       octave == o.octave && xyz == o.xyz && descriptors == o.descriptors &&
+	       groundValid == o.groundValid && groundN[0] == o.groundN[0] &&
+	       groundN[1] == o.groundN[1] && groundN[2] == o.groundN[2] && groundD == o.groundD;
 }
 
 void Keyframe::releaseFeatures()

@@ -97,4 +97,24 @@ Plane fitGroundPlane(const std::vector<PointXYZI>& pts, const GroundParams& prm,
 	return best;
 }
 
+std::optional<Eigen::Isometry3d> alignGroundPlanes(const Eigen::Isometry3d& T_ref_cur,
+                                                   const Eigen::Vector3d& nRef, double dRef,
+                                                   const Eigen::Vector3d& nCur, double dCur,
+                                                   double maxCorrection_deg, double* correction_deg)
+{
+	const Eigen::Vector3d n1 = T_ref_cur.linear() * nCur;
+	const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(n1, nRef);
+	const double angle = Eigen::AngleAxisd(q).angle() * 180 / M_PI;
+	if (correction_deg)
+		*correction_deg = angle;
+	if (angle > maxCorrection_deg)
+		return std::nullopt;
+	Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+	out.linear() = q.toRotationMatrix() * T_ref_cur.linear();
+	const Eigen::Vector3d t = q * T_ref_cur.translation();
+	// The current plane in the reference frame: nRef . x + (dCur - nRef . t) = 0.
+	out.translation() = t + (dCur - dRef - nRef.dot(t)) * nRef;
+	return out;
+}
+
 }  // namespace rasterslam::raster

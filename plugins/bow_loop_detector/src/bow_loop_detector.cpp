@@ -37,6 +37,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	ransac_.minInliers = p.getInt("min_inliers", 25);
 	ransac_.maxIterations = p.getInt("ransac_max_iterations", 1000);
 	relocMinInliers_ = p.getInt("relocalization_min_inliers", relocMinInliers_);
+	groundMaxTilt_deg_ = p.getDouble("relocalization_max_tilt_deg", groundMaxTilt_deg_);
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
 	p.requirePositive(searchRadius_m_, "search_radius_m");
 	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
@@ -53,6 +54,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(ransac_.minInliers, 3, "min_inliers");  // a rigid fit takes 3 points
 	p.requireAtLeast(ransac_.maxIterations, 1, "ransac_max_iterations");
 	p.requireAtLeast(relocMinInliers_, 3, "relocalization_min_inliers");
+	p.requireRange(groundMaxTilt_deg_, 0, 180, "relocalization_max_tilt_deg");
 	p.requirePositive(pointSigma_m_, "point_sigma_m");
 
 	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);

@@ -51,7 +51,18 @@ class BowLoopDetector : public LoopDetector
 	{
 		cv::Mat desc;
 		std::vector<Eigen::Vector3f> pts;
+		/** The query's ground plane (n . p + d = 0, its frame), when known. */
+		bool groundValid = false;
+		Eigen::Vector3d groundN = Eigen::Vector3d::UnitZ();
+		double groundD = 0;
 	};
+	/** T_anchor_query with its height from the ground planes of the query and of keyframe
+	 *  `kf` (nearest to it in the local map): unchanged when either has none; nullopt when
+	 *  the registration tilts the query's plane more than groundMaxTilt_deg_ off the
+	 *  keyframe's (then it is not trusted); `tilt_deg` receives that angle. */
+	std::optional<Eigen::Isometry3d> groundAligned(const Query& q, const LocalMap& lm, uint64_t kf,
+	                                               const Eigen::Isometry3d& T, const Map& map,
+	                                               const PoseView& poses, double* tilt_deg) const;
 	/** The database's best candidates for the query, each verified; the one with the most
 	 *  inliers wins. */
 	RelocalizationResult relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
@@ -103,6 +114,9 @@ class BowLoopDetector : public LoopDetector
 	 *  decides nothing (a session is anchored by several agreeing ones) and another sensor's
 	 *  scans match a map with fewer. */
 	int relocMinInliers_ = 18;
+	/** A relocalization whose tilt differs from the ground planes' by more than this is
+	 *  refused; within it, the planes give the height. */
+	double groundMaxTilt_deg_ = 5.0;
 	double pointSigma_m_ = 0.2;
 
 	// state: the place index only

@@ -1,5 +1,7 @@
 // Relocalization (paper, "Re-localization"): a scan with no pose prior queries the database
 // and is verified against the candidate local maps' points.
+#include <rasterslam/raster/ground_plane.h>
+
 #include "bow_loop_detector.h"
 
 using namespace rasterslam;
@@ -32,6 +34,10 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 		res.reason = "features";
 		return res;
 	}
+	q.groundValid = raster.groundValid;
+	q.groundN =
+	    Eigen::Vector3d(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
+	q.groundD = raster.groundD;
 	return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses);
 }
 
@@ -87,6 +93,18 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		if (fit.ok && fit.inliers.size() > res.inliers)
 		{
 			const uint64_t kf = nearestKeyframe(lm, fit.T, poses);
+			double tilt = 0;
+			const auto T = groundAligned(q, lm, kf, fit.T, map, poses, &tilt);
+			if (!T)
+			{
+				if (!res.found)
+				{
+					res.reason = "ground";
+					res.score = std::max(res.score, r.score);
+					res.inliers = std::max(res.inliers, fit.inliers.size());
+				}
+				continue;
+			}
 			res.found = true;
 			res.reason = "ok";
 			res.localMap = lm.id;
@@ -95,7 +113,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			res.score = r.score;
 			res.inliers = fit.inliers.size();
 			res.keyframePose = poses.at(kf);
-			res.pose = poses.at(lm.anchor()) + toPose(fit.T);
+			res.pose = poses.at(lm.anchor()) + toPose(*T);
 		}
 		else if (!res.found)
 		{
@@ -104,4 +122,31 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		}
 	}
 	return res;
+}
+
+std::optional<Eigen::Isometry3d> BowLoopDetector::groundAligned(
+    const Query& q, const LocalMap& lm, uint64_t kf, const Eigen::Isometry3d& T, const Map& map,
+    const PoseView& poses, double* tilt_deg) const
+{
+	*tilt_deg = 0;
+	const auto it = map.keyframes.find(kf);
+	if (!q.groundValid || it == map.keyframes.end() || !it->second->groundValid)
+		return T;
+	const auto& k = *it->second;
+	// Both planes in the keyframe's frame: T_kf_query = T_kf_anchor * T_anchor_query.
+	const Eigen::Isometry3d T_anchor_kf = toIsometry(poses.at(kf) - poses.at(lm.anchor()));
+	const Eigen::Isometry3d T_kf_query = T_anchor_kf.inverse() * T;
+	const Eigen::Vector3d nK(k.groundN[0], k.groundN[1], k.groundN[2]);
+	const auto aligned = raster::alignGroundPlanes(T_kf_query, nK, k.groundD, q.groundN, q.groundD,
+	                                               groundMaxTilt_deg_, tilt_deg);
+	if (!aligned)
+		return std::nullopt;
+	// Height only: the ground point under the query goes onto the keyframe's plane. Roll and
+	// pitch stay the registration's: at a few metres to the side (a kerb, the camber) the
+	// local planes differ, and turning the pose onto them made its tilt worse (rendered KITTI
+	// revisits: median tilt error 0.22 -> 0.34 deg, 154 -> 149 of 160 correct; this way 155).
+	const Eigen::Vector3d g = T_kf_query * (-q.groundD * q.groundN);
+	Eigen::Isometry3d out = T_kf_query;
+	out.translation() -= (nK.dot(g) + k.groundD) * nK;
+	return T_anchor_kf * out;
 }

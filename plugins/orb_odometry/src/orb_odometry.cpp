@@ -208,23 +208,12 @@ features::RigidResult OrbOdometry::track(const Frame& ref, const Frame& cur,
 Eigen::Isometry3d OrbOdometry::alignGround(const Eigen::Isometry3d& T, const Frame& ref,
                                            const Frame& cur) const
 {
-	// Features on an elevation image pin x, y and yaw well; the heights of the points behind
-	// the pixels are noisy, and so are z, roll and pitch. The ground planes of both scans pin
-	// those three (as LeGO-LOAM's two-step fit does): rotate the estimate by the smallest
-	// rotation that maps the current ground normal onto the reference's, then move it along
-	// the normal so that both planes coincide.
+	// x, y and yaw from the features, z, roll and pitch from the two ground planes.
 	if (!ref.groundValid || !cur.groundValid)
 		return T;
-	const Eigen::Vector3d n1 = T.linear() * cur.groundN;
-	const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(n1, ref.groundN);
-	if (Eigen::AngleAxisd(q).angle() > groundMaxCorrection_deg_ * M_PI / 180)
-		return T;  // a slope change
-	Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-	out.linear() = q.toRotationMatrix() * T.linear();
-	const Eigen::Vector3d t = q * T.translation();
-	// Plane of the current scan in the reference frame: n_ref . x + (d_cur - n_ref . t) = 0.
-	out.translation() = t + (cur.groundD - ref.groundD - ref.groundN.dot(t)) * ref.groundN;
-	return out;
+	const auto aligned = raster::alignGroundPlanes(T, ref.groundN, ref.groundD, cur.groundN,
+	                                               cur.groundD, groundMaxCorrection_deg_);
+	return aligned ? *aligned : T;  // none: a slope change
 }
 
 Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const
@@ -249,6 +238,10 @@ Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const
 			k->xyz[3 * i + c] = f.pts[i][c];
 		std::memcpy(&k->descriptors[32 * i], f.desc.ptr<uint8_t>(static_cast<int>(i)), 32);
 	}
+	k->groundValid = f.groundValid;
+	for (int c = 0; c < 3; c++)
+		k->groundN[c] = static_cast<float>(f.groundN[c]);
+	k->groundD = static_cast<float>(f.groundD);
 	return k;
 }
 

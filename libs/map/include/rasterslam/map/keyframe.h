@@ -31,6 +31,13 @@ class Keyframe : public mrpt::serialization::CSerializable
 	std::vector<float> xyz;            //!< 3 floats a feature
 	std::vector<uint8_t> descriptors;  //!< 32 bytes a feature
 
+	/** The ground plane the rasterizer found in the keyframe's scan, in its vehicle frame:
+	 *  n . p + d = height above the ground (n unit, up). Relocalization takes height, roll and
+	 *  pitch from it. Kept when the features are released; maps saved before it have none. */
+	bool groundValid = false;
+	float groundN[3] = {0, 0, 1};
+	float groundD = 0;
+
 	std::size_t size() const { return u.size(); }
 	/** Drops the features (the keyframe's local maps hold them as map points). */
 	void releaseFeatures();

@@ -4,8 +4,9 @@
 
 #include <rasterslam/core/types.h>
 
-#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace rasterslam::raster
@@ -39,5 +40,19 @@ struct Plane
  *  least squares on the inliers. Deterministic for a given seed. Returns valid=false when
  *  there are fewer than 3 candidates or no hypothesis passes the tilt check. */
 Plane fitGroundPlane(const std::vector<PointXYZI>& pts, const GroundParams& p, uint32_t seed);
+
+/** Height, roll and pitch of a pose from two ground planes. Features on an elevation image
+ *  fix x, y and yaw well and the other three poorly; the ground planes of both scans fix those
+ *  (as LeGO-LOAM's two-step fit does). T_ref_cur (the current scan's pose in the reference
+ *  scan's frame) is turned by the smallest rotation that maps the current ground normal onto
+ *  the reference's, then moved along the normal until both planes coincide. Planes as in
+ *  Plane (n.p + d = 0, n unit and up), each in its scan's frame. Returns nullopt when that
+ *  rotation exceeds maxCorrection_deg (a change of slope between the two places, or a wrong
+ *  estimate); `correction_deg`, when given, receives its angle either way. */
+std::optional<Eigen::Isometry3d> alignGroundPlanes(const Eigen::Isometry3d& T_ref_cur,
+                                                   const Eigen::Vector3d& nRef, double dRef,
+                                                   const Eigen::Vector3d& nCur, double dCur,
+                                                   double maxCorrection_deg,
+                                                   double* correction_deg = nullptr);
 
 }  // namespace rasterslam::raster
