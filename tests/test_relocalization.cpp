@@ -27,6 +27,7 @@ struct RelocLine
 	std::string reason;
 	double kfStamp = 0;
 	std::size_t inliers = 0;
+	double score = 0;
 	Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
 };
 
@@ -43,8 +44,8 @@ std::vector<RelocLine> readReloc(const fs::path& p)
 		RelocLine r;
 		std::string status;
 		unsigned long long lm, kf;
-		double score, x, y, z, qx, qy, qz, qw;
-		ss >> r.stamp >> status >> r.reason >> lm >> kf >> r.kfStamp >> score >> r.inliers >> x >>
+		double x, y, z, qx, qy, qz, qw;
+		ss >> r.stamp >> status >> r.reason >> lm >> kf >> r.kfStamp >> r.score >> r.inliers >> x >>
 		    y >> z >> qx >> qy >> qz >> qw;
 		EXPECT_FALSE(ss.fail()) << line;
 		r.found = status == "found";
@@ -311,6 +312,26 @@ TEST(Relocalization, KittiStreetRevisitsRenderedFromRealScans)
 		}
 	EXPECT_EQ(opposite, queries / 2);
 	EXPECT_GE(oppositeCorrect, opposite * 8 / 10);
+
+	// Every found line names a local map and a keyframe of this map, with a normalized score
+	// at or over min_score (0.3).
+	for (const auto& l : readReloc(dir / "reloc" / "relocalization.txt"))
+		if (l.found)
+			EXPECT_GE(l.score, 0.3);
+
+	// Scans of another (simulated) town, same sensor: none is placed in the KITTI street.
+	const auto other = (dir / "town.rawlog").string();
+	r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+	                     test::sourcePath("rawlogs/town-loop.yaml") + " --scans 60 -o " + other);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	r = test::runCommand(test::bin("rasterslam") + " relocalize --quiet --map " +
+	                     (dir / "map").string() + " --rawlog " + other + " --out " +
+	                     (dir / "other").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const auto lines = readReloc(dir / "other" / "relocalization.txt");
+	ASSERT_EQ(lines.size(), 60u);
+	for (const auto& l : lines)
+		EXPECT_FALSE(l.found) << l.stamp << " placed with " << l.inliers << " inliers";
 }
 
 TEST(Relocalization, EvalRefusesAMalformedFileNamingIt)

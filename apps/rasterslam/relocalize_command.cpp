@@ -32,8 +32,11 @@ Command addRelocalizeCommand(CLI::App& app)
 	auto a = std::make_shared<RelocalizeArgs>();
 	CLI::App* sub = subcommand(
 	    app, "relocalize", "locate every scan of a rawlog in a saved map, with no pose prior",
-	    "Writes DIR2/relocalization.txt: a line a scan with stamp, status, reason, local map, "
-	    "keyframe, score, inliers and the pose x y z qx qy qz qw in the map frame.");
+	    "Writes DIR2/relocalization.txt: a line a scan with stamp, status, reason (ok, "
+	    "features, candidates, score, inliers, ground), the map's local map and keyframe ids, "
+	    "the keyframe's stamp, the BOW score normalized by what the scan's two halves score "
+	    "against each other (candidates under the loop detector's min_score are not "
+	    "verified), inliers, and the pose x y z qx qy qz qw in the map frame.");
 	sub->add_option("--map", a->mapDir, "map saved by rasterslam run --map-out")
 	    ->required()
 	    ->type_name("DIR");

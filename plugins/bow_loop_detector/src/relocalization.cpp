@@ -72,7 +72,18 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 {
 	RelocalizationResult res;
 	bow::BowVector b;
-	vocab_->transform(descriptorsOf(q.desc), b);
+	const auto desc = descriptorsOf(q.desc);
+	vocab_->transform(desc, b);
+	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops):
+	// its two halves, even and odd features, scored against each other stand for what the
+	// same place scores.
+	std::vector<bow::Descriptor> even, odd;
+	for (std::size_t i = 0; i < desc.size(); i++)
+		(i % 2 ? odd : even).push_back(desc[i]);
+	bow::BowVector be, bo;
+	vocab_->transform(even, be);
+	vocab_->transform(odd, bo);
+	const double norm = bow::Vocabulary::score(be, bo);
 	const auto results = db_.query(b, static_cast<std::size_t>(maxCandidates_ + 1));
 	if (results.empty())
 	{
@@ -89,6 +100,19 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		if (!data)
 			continue;
 		const auto& lm = *data;
+		const double score = norm > 1e-6 ? r.score / norm : 0;
+		// min_score before the verification: a candidate the words do not support costs no
+		// matching (scans of another town against a KITTI map: 90 % score under 0.32; true
+		// places 0.44 and up on the simulated town, 1.04 and up on the KITTI street).
+		if (score < minScore_)
+		{
+			if (!res.found && res.inliers == 0)
+			{
+				res.reason = "score";
+				res.score = std::max(res.score, score);
+			}
+			continue;  // the database is sorted by score: the rest scores lower still
+		}
 		const auto fit = verify(q, lm, static_cast<uint32_t>(seed + lm.id), -1, relocMinInliers_);
 		if (fit.ok && fit.inliers.size() > res.inliers)
 		{
@@ -100,7 +124,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 				if (!res.found)
 				{
 					res.reason = "ground";
-					res.score = std::max(res.score, r.score);
+					res.score = std::max(res.score, score);
 					res.inliers = std::max(res.inliers, fit.inliers.size());
 				}
 				continue;
@@ -110,14 +134,15 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			res.localMap = lm.id;
 			res.keyframe = kf;
 			res.keyframeStamp = map.keyframes.at(kf)->stamp;
-			res.score = r.score;
+			res.score = score;
 			res.inliers = fit.inliers.size();
 			res.keyframePose = poses.at(kf);
 			res.pose = poses.at(lm.anchor()) + toPose(*T);
 		}
 		else if (!res.found)
 		{
-			res.score = std::max(res.score, r.score);
+			res.reason = "inliers";
+			res.score = std::max(res.score, score);
 			res.inliers = std::max(res.inliers, fit.inliers.size());
 		}
 	}
