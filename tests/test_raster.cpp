@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <set>
 
 #include "test_support.h"
@@ -189,6 +190,82 @@ TEST(RasterGround, AlignGroundPlanesFixesHeightAndTilt)
 	const auto refused = raster::alignGroundPlanes(est, up, 1.7, up, 1.7, 1.0, &angle);
 	EXPECT_FALSE(refused);
 	EXPECT_NEAR(angle, 2.0, 1e-6);
+}
+
+// canonical_yaw: the same street seen turned by 20 degrees gives the same image again.
+TEST(RasterProjection, CanonicalYawUndoesATurn)
+{
+	// Walls along x and y (a street crossing), 3 m high, points every 5 cm.
+	std::vector<PointXYZI> street;
+	for (double a = -30; a <= 30; a += 0.05)
+		for (double z = -1.5; z <= 1.5; z += 0.25)
+			for (const double off : {-7.0, 7.0})
+			{
+				street.push_back({float(a), float(off), float(z), 0});
+				if (std::abs(a) > 7.5)
+					street.push_back({float(off), float(a), float(z), 0});
+			}
+	const auto turned = [&](double deg)
+	{
+		const double c = std::cos(deg * M_PI / 180), sn = std::sin(deg * M_PI / 180);
+		auto pts = street;
+		for (auto& p : pts)
+		{
+			const float x = p.x, y = p.y;
+			p.x = float(c * x - sn * y);
+			p.y = float(sn * x + c * y);
+		}
+		return pts;
+	};
+	raster::RasterParams p;
+	p.removeGround = false;
+	p.equalize = false;
+	const auto overlap = [&](bool canonical)
+	{
+		p.canonicalYaw = canonical;
+		RasterFrame a, b;
+		raster::rasterizeElevation(turned(0), raster::Plane(), p, a);
+		raster::rasterizeElevation(turned(20), raster::Plane(), p, b);
+		const cv::Mat ia = a.image.asCvMatRef(), ib = b.image.asCvMatRef();
+		// The turn is a multiple of 90 degrees away once both are canonical: compare with
+		// the best of the four quarter turns.
+		double best = 0;
+		for (int k = 0; k < 4; k++)
+		{
+			cv::Mat r = ib.clone();
+			for (int i = 0; i < k; i++)
+				cv::rotate(r, r, cv::ROTATE_90_CLOCKWISE);
+			// Share of a's occupied pixels with one of r's within 2 pixels (the estimated
+			// turn is good to about a degree: a wall 30 m out moves by up to 3 pixels).
+			double both = 0, occupied = 0;
+			for (int y = 2; y < ia.rows - 2; y++)
+				for (int x = 2; x < ia.cols - 2; x++)
+				{
+					if (!ia.at<uint8_t>(y, x))
+						continue;
+					occupied++;
+					bool near = false;
+					for (int dy = -2; dy <= 2 && !near; dy++)
+						for (int dx = -2; dx <= 2 && !near; dx++)
+							near = r.at<uint8_t>(y + dy, x + dx) != 0;
+					both += near;
+				}
+			const double either = occupied;
+			best = std::max(best, both / either);
+		}
+		return best;
+	};
+	const double plain = overlap(false), canonical = overlap(true);
+	std::printf("share of wall pixels matched: %.3f plain, %.3f canonical\n", plain, canonical);
+	EXPECT_LT(plain, 0.2);      // the walls no longer cover the same pixels (0.06)
+	EXPECT_GT(canonical, 0.7);  // most of them do again (0.75: the turn is found to a degree)
+	RasterFrame f;
+	p.canonicalYaw = true;
+	raster::rasterizeElevation(turned(20), raster::Plane(), p, f);
+	// The two turns differ by 70 degrees (-20 modulo 90).
+	RasterFrame g;
+	raster::rasterizeElevation(turned(0), raster::Plane(), p, g);
+	EXPECT_NEAR((f.imageYaw - g.imageYaw) * 180 / M_PI, 70, 2.0);
 }
 
 TEST(RasterProjection, BevPixelsByHand)

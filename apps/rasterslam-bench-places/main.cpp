@@ -17,7 +17,6 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
@@ -48,60 +47,16 @@ struct Place
 	Eigen::Vector3d position;
 };
 
-/** The dominant direction of the image's edges, modulo 90 degrees (radians): the peak of
- *  the gradient orientations weighted by their magnitude, 1-degree bins, smoothed. */
-double dominantAngle(const cv::Mat& img)
-{
-	cv::Mat gx, gy;
-	cv::Sobel(img, gx, CV_32F, 1, 0);
-	cv::Sobel(img, gy, CV_32F, 0, 1);
-	std::vector<double> hist(90, 0.0);
-	for (int r = 0; r < img.rows; r++)
-		for (int c = 0; c < img.cols; c++)
-		{
-			const float x = gx.at<float>(r, c), y = gy.at<float>(r, c);
-			const double m = std::hypot(x, y);
-			if (m < 1)
-				continue;
-			double a = std::atan2(y, x) * 180 / M_PI;
-			a = std::fmod(a + 360.0, 90.0);
-			hist[static_cast<std::size_t>(a) % 90] += m;
-		}
-	std::vector<double> sm(90);
-	for (std::size_t i = 0; i < 90; i++)
-		sm[i] = hist[(i + 89) % 90] + 2 * hist[i] + hist[(i + 1) % 90];
-	const auto best = static_cast<std::size_t>(std::max_element(sm.begin(), sm.end()) - sm.begin());
-	// Sub-bin peak: the vertex of the parabola through the peak bin and its neighbours.
-	const double l = sm[(best + 89) % 90], c = sm[best], r = sm[(best + 1) % 90];
-	const double den = l - 2 * c + r;
-	const double off = std::abs(den) > 1e-9 ? 0.5 * (l - r) / den : 0.0;
-	return (static_cast<double>(best) + 0.5 + off) * M_PI / 180;
-}
-
 bool gCanonical = false;
 
 bow::BowVector wordsOf(const Scan& scan, const bow::Vocabulary& vocab, features::OrbExtractor& orb,
                        uint32_t seed)
 {
 	const raster::Plane plane = raster::fitGroundPlane(scan.points, raster::GroundParams(), seed);
+	raster::RasterParams rp;
+	rp.canonicalYaw = gCanonical;
 	RasterFrame f;
-	raster::rasterizeElevation(scan.points, plane, raster::RasterParams(), f);
-	if (gCanonical)
-	{
-		// The image again, turned so that the dominant edges run along its axes.
-		const double a = -dominantAngle(f.image.asCvMatRef());
-		const double c = std::cos(a), s = std::sin(a);
-		auto pts = scan.points;
-		for (auto& p : pts)
-		{
-			const float x = p.x, y = p.y;
-			p.x = static_cast<float>(c * x + s * y);
-			p.y = static_cast<float>(-s * x + c * y);
-		}
-		const raster::Plane pl = raster::fitGroundPlane(pts, raster::GroundParams(), seed);
-		f = RasterFrame();
-		raster::rasterizeElevation(pts, pl, raster::RasterParams(), f);
-	}
+	raster::rasterizeElevation(scan.points, plane, rp, f);
 	std::vector<cv::KeyPoint> kps;
 	cv::Mat desc;
 	orb.extract(f.image.asCvMatRef(), kps, desc);

@@ -312,7 +312,12 @@ void Backend::process(KeyframeJob& job)
 	{
 		const auto t0 = Clock::now();
 		std::vector<std::pair<uint64_t, uint64_t>> accepted;
-		for (auto lc : loopDetector_->detect(job.kf, mapManager_->map(), poses_))
+		job.kf.scan = job.scan.get();
+		job.kf.raster = job.raster.get();
+		const auto loops = loopDetector_->detect(job.kf, mapManager_->map(), poses_);
+		job.kf.scan = nullptr;
+		job.kf.raster = nullptr;
+		for (auto lc : loops)
 		{
 			std::lock_guard<std::mutex> lk(graphMutex_);
 			if (!res_.graph.nodes.count(lc.from))

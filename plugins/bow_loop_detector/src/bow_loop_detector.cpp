@@ -39,6 +39,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	relocMinInliers_ = p.getInt("relocalization_min_inliers", relocMinInliers_);
 	groundMaxTilt_deg_ = p.getDouble("relocalization_max_tilt_deg", groundMaxTilt_deg_);
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
+	canonicalYaw_ = p.getBool("canonical_yaw", canonicalYaw_);
 	p.requirePositive(searchRadius_m_, "search_radius_m");
 	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
 	p.requireAtLeast(onlineBranching_, 2, "online_branching");
@@ -282,7 +283,10 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	{
 		// Query the database with this keyframe's words.
 		bow::BowVector b;
-		vocab_->transform(descriptorsOf(q.desc), b);
+		if (canonicalYaw_ && kf.scan && kf.raster)
+			b = canonicalWords(*kf.scan, *kf.raster);
+		else
+			vocab_->transform(descriptorsOf(q.desc), b);
 		// DBoW2 normalizes by the score against the previous keyframe: what a "good" match
 		// looks like here and now.
 		const double norm = prevBow_ ? bow::Vocabulary::score(b, *prevBow_) : 1.0;

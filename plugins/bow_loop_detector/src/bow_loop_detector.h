@@ -64,9 +64,15 @@ class BowLoopDetector : public LoopDetector
 	                                               const Eigen::Isometry3d& T, const Map& map,
 	                                               const PoseView& poses, double* tilt_deg) const;
 	/** The database's best candidates for the query, each verified; the one with the most
-	 *  inliers wins. */
+	 *  inliers wins. `words`: the query's words when they do not come from its features
+	 *  (canonical_yaw). */
 	RelocalizationResult relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
-	                                     const PoseView& poses);
+	                                     const PoseView& poses,
+	                                     const bow::BowVector* words = nullptr);
+	/** canonical_yaw: the words of the scan's elevation image turned to its dominant edges
+	 *  (as the local-map images are with map_manager.canonical_yaw). */
+	bow::BowVector canonicalWords(const Scan& scan, const RasterFrame& raster) const;
+	bool canonicalYaw_ = false;
 	/** Matches the query against the local map's points (only those seen by keyframe
 	 *  `onlyKeyframe` when >= 0) and fits the rigid transform with RANSAC. */
 	/** The fit's T maps the query frame into the local map's anchor frame; its inliers are

@@ -38,6 +38,11 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 	q.groundN =
 	    Eigen::Vector3d(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
 	q.groundD = raster.groundD;
+	if (canonicalYaw_)
+	{
+		const auto words = canonicalWords(scan, raster);
+		return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses, &words);
+	}
 	return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses);
 }
 
@@ -68,12 +73,16 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 }
 
 RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
-                                                      const PoseView& poses)
+                                                      const PoseView& poses,
+                                                      const bow::BowVector* words)
 {
 	RelocalizationResult res;
 	bow::BowVector b;
 	const auto desc = descriptorsOf(q.desc);
-	vocab_->transform(desc, b);
+	if (words)
+		b = *words;
+	else
+		vocab_->transform(desc, b);
 	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops):
 	// its two halves, even and odd features, scored against each other stand for what the
 	// same place scores.
@@ -174,4 +183,22 @@ std::optional<Eigen::Isometry3d> BowLoopDetector::groundAligned(
 	Eigen::Isometry3d out = T_kf_query;
 	out.translation() -= (nK.dot(g) + k.groundD) * nK;
 	return T_anchor_kf * out;
+}
+
+bow::BowVector BowLoopDetector::canonicalWords(const Scan& scan, const RasterFrame& raster) const
+{
+	const auto yaw = static_cast<float>(raster::dominantEdgeAngle(raster.image.asCvMatRef()));
+	raster::Plane plane;
+	plane.valid = raster.groundValid;
+	plane.n =
+	    Eigen::Vector3f(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
+	plane.d = raster.groundD;
+	RasterFrame turned;
+	raster::rasterizeElevationTurned(scan.points, plane, raster::RasterParams(), yaw, turned);
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat desc;
+	orb_->extract(turned.image.asCvMatRef(), kps, desc);
+	bow::BowVector b;
+	vocab_->transform(descriptorsOf(desc), b);
+	return b;
 }

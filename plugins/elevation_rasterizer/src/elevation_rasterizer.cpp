@@ -52,6 +52,7 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 	r.greyMin_m = p.getDouble("grey_min_m", r.greyMin_m);
 	r.greyMax_m = p.getDouble("grey_max_m", r.greyMax_m);
 	r.equalize = p.getBool("equalize", r.equalize);
+	r.canonicalYaw = p.getBool("canonical_yaw", r.canonicalYaw);
 	raster::GroundParams g;
 	g.candidateMaxZ_m = p.getDouble("ground_candidate_max_z_m", g.candidateMaxZ_m);
 	g.candidateMaxRange_m = p.getDouble("ground_candidate_max_range_m", g.candidateMaxRange_m);

@@ -125,6 +125,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	mapRaster_.minRange_m = 0;
 	mapRaster_.removeGround = false;  // the keyframe clouds hold no ground already
 	mapRaster_.belowGround_m = 1e6;
+	mapRaster_.canonicalYaw = p.getBool("canonical_yaw", false);
 	mapOrb_.numFeatures = p.getInt("map_features", 3000);
 	mapOrb_.levels = 3;
 	cullDistance_m_ = p.getDouble("cull_distance_m", cullDistance_m_);

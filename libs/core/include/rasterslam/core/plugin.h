@@ -53,6 +53,9 @@ struct RasterFrame
 	mrpt::img::CImage image;  //!< 8-bit greyscale
 	/** Row-major, one entry a pixel: index into Scan::points, or -1 for an empty pixel. */
 	std::vector<int32_t> pixelToPoint;
+	/** The image shows the scan turned by this about z (radians, counter-clockwise): 0 unless
+	 *  the rasterizer turns its images to a canonical orientation. */
+	float imageYaw = 0;
 };
 
 class Rasterizer : public Plugin
@@ -114,6 +117,10 @@ struct KeyframeInfo
 	/** The keyframe of the map this one was relocalized against (a graph edge joins them):
 	 *  a session anchored in a prior map, or tracking found again after a loss. */
 	std::optional<uint64_t> locatedAt;
+	/** The scan that made the keyframe and its elevation image, while the engine hands the
+	 *  keyframe to the mapping and the loop detector (null otherwise; not to be kept). */
+	const Scan* scan = nullptr;
+	const RasterFrame* raster = nullptr;
 };
 
 /** What the mapping did with a keyframe, for the engine to apply. */

@@ -4,6 +4,7 @@
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/raster/ground_plane.h>
 
+#include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,12 @@ struct RasterParams
 	 *  makes the ground at +-maxRange_m reach the image border. */
 	int pinholeSize_px = 500;
 	double cameraHeight_m = 20.0;
+	/** BEV only: turn the image so that the scene's dominant edges run along its axes (the
+	 *  peak of the gradient orientations of a first image, modulo 90 degrees), so that a
+	 *  place seen turned by any angle gives the same pixel grid (ORB's orientation does not
+	 *  undo a changed pixelization). RasterFrame::imageYaw records the turn; pixelToPoint
+	 *  still indexes the input points. Costs a second pass. */
+	bool canonicalYaw = false;
 };
 
 struct RasterStats
@@ -55,6 +62,16 @@ struct RasterStats
  *  z + sensorHeight_m). */
 RasterStats rasterizeElevation(const std::vector<PointXYZI>& pts, const Plane& ground,
                                const RasterParams& p, RasterFrame& out);
+
+/** As rasterizeElevation, with the points turned by `yaw` (radians, counter-clockwise about
+ *  z) before the projection, whatever p.canonicalYaw says; out.imageYaw = yaw. */
+RasterStats rasterizeElevationTurned(const std::vector<PointXYZI>& pts, const Plane& ground,
+                                     const RasterParams& p, float yaw, RasterFrame& out);
+
+/** The dominant direction of an 8-bit image's edges modulo 90 degrees, in [0, pi/2): the
+ *  peak of the gradient orientations weighted by magnitude, 1-degree bins smoothed, refined
+ *  between bins. */
+double dominantEdgeAngle(const cv::Mat& img);
 
 /** Pixel (u, v) of a point for the given parameters (floating point; may lie outside). */
 bool projectPoint(const RasterParams& p, float x, float y, float z, float& u, float& v);
