@@ -224,6 +224,36 @@ TEST(Matcher, IdenticalAndShuffledSets)
 	EXPECT_TRUE(features::matchMutual(A, cv::Mat(0, 32, CV_8U), mp).empty());
 }
 
+// The direct index's matching: pairs in different groups are never compared.
+TEST(Matcher, GroupedComparesOnlyWithinAGroup)
+{
+	const cv::Mat A = randomDescriptors(100, 3);
+	features::MatchParams mp;
+	std::vector<uint32_t> ga(100), gb(100);
+	for (uint32_t i = 0; i < 100; i++)
+		ga[i] = gb[i] = i % 7;
+	// Same groups: every descriptor finds itself.
+	auto m = features::matchMutualGrouped(A, A, mp, ga, gb);
+	ASSERT_EQ(m.size(), 100u);
+	for (const auto& x : m)
+		EXPECT_EQ(x.a, x.b);
+	// Every third feature of B put in another group: those lose their twin, and with no
+	// distance limit match some other descriptor of their new group or nothing, never the
+	// twin.
+	for (uint32_t i = 0; i < 100; i += 3)
+		gb[i] = 100 + i;
+	m = features::matchMutualGrouped(A, A, mp, ga, gb);
+	std::size_t same = 0;
+	for (const auto& x : m)
+	{
+		EXPECT_EQ(ga[static_cast<std::size_t>(x.a)], gb[static_cast<std::size_t>(x.b)]);
+		same += x.a == x.b;
+	}
+	EXPECT_EQ(same, 100u - 34u);
+	// Groups of the wrong length are refused.
+	EXPECT_ANY_THROW(features::matchMutualGrouped(A, A, mp, ga, std::vector<uint32_t>(5)));
+}
+
 TEST(Matcher, MaxDistanceRejectsFarPairs)
 {
 	const cv::Mat A = randomDescriptors(100, 3);

@@ -83,4 +83,56 @@ std::vector<Match> matchMutual(const cv::Mat& descA, const cv::Mat& descB, const
 	return out;
 }
 
+std::vector<Match> matchMutualGrouped(const cv::Mat& descA, const cv::Mat& descB,
+                                      const MatchParams& p, const std::vector<uint32_t>& groupA,
+                                      const std::vector<uint32_t>& groupB)
+{
+	const int na = descA.rows, nb = descB.rows;
+	std::vector<Match> out;
+	if (na == 0 || nb == 0)
+		return out;
+	CV_Assert(descA.cols == 32 && descB.cols == 32 && descA.type() == CV_8U &&
+	          descB.type() == CV_8U && groupA.size() == static_cast<std::size_t>(na) &&
+	          groupB.size() == static_cast<std::size_t>(nb));
+	constexpr int kInf = std::numeric_limits<int>::max();
+	std::vector<int> bestA(na, -1), distA(na, kInf), secondA(na, kInf);
+	std::vector<int> bestB(nb, -1), distB(nb, kInf);
+	std::map<uint32_t, std::vector<int>> byGroup;
+	for (int j = 0; j < nb; j++)
+		byGroup[groupB[static_cast<std::size_t>(j)]].push_back(j);
+	for (int i = 0; i < na; i++)
+	{
+		const auto it = byGroup.find(groupA[static_cast<std::size_t>(i)]);
+		if (it == byGroup.end())
+			continue;
+		for (const int j : it->second)
+		{
+			const int d = hamming32(descA.ptr<uint8_t>(i), descB.ptr<uint8_t>(j));
+			if (d < distA[i])
+			{
+				secondA[i] = distA[i];
+				distA[i] = d;
+				bestA[i] = j;
+			}
+			else if (d < secondA[i])
+				secondA[i] = d;
+			if (d < distB[j] || (d == distB[j] && i < bestB[j]))
+			{
+				distB[j] = d;
+				bestB[j] = i;
+			}
+		}
+	}
+	for (int i = 0; i < na; i++)
+	{
+		const int j = bestA[i];
+		if (j < 0 || bestB[j] != i || distA[i] > p.maxDistance)
+			continue;
+		if (p.ratio < 1.0f && secondA[i] != kInf && distA[i] >= p.ratio * secondA[i])
+			continue;
+		out.push_back({i, j, distA[i]});
+	}
+	return out;
+}
+
 }  // namespace rasterslam::features

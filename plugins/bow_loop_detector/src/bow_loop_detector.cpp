@@ -40,6 +40,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	groundMaxTilt_deg_ = p.getDouble("relocalization_max_tilt_deg", groundMaxTilt_deg_);
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
 	canonicalYaw_ = p.getBool("canonical_yaw", canonicalYaw_);
+	directLevels_ = p.getInt("direct_index_levels_up", directLevels_);
 	p.requirePositive(searchRadius_m_, "search_radius_m");
 	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
 	p.requireAtLeast(onlineBranching_, 2, "online_branching");
@@ -57,6 +58,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(relocMinInliers_, 3, "relocalization_min_inliers");
 	p.requireRange(groundMaxTilt_deg_, 0, 180, "relocalization_max_tilt_deg");
 	p.requirePositive(pointSigma_m_, "point_sigma_m");
+	p.requireRange(directLevels_, 0, 8, "direct_index_levels_up");
 
 	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);
 	vocab_.reset();
@@ -159,6 +161,20 @@ cv::Mat descriptorMat(const std::vector<uint8_t>& bytes)
 }
 }  // namespace
 
+std::vector<uint32_t> BowLoopDetector::groupsOf(const cv::Mat& desc) const
+{
+	std::vector<uint32_t> g(static_cast<std::size_t>(desc.rows), 0);
+	if (!vocab_ || desc.rows == 0)
+		return g;
+	bow::BowVector b;
+	bow::FeatureVector fv;
+	vocab_->transform(descriptorsOf(desc), b, &fv, directLevels_);
+	for (const auto& [node, features] : fv)
+		for (const auto i : features)
+			g[i] = node;
+	return g;
+}
+
 features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm, uint32_t seed,
                                               int onlyKeyframe, int minInliers) const
 {
@@ -181,7 +197,10 @@ features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm
 				    cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
 			}
 	}
-	const auto matches = features::matchMutual(q.desc, cand, match_);
+	const auto matches =
+	    directLevels_ > 0 && q.groups.size() == static_cast<std::size_t>(q.desc.rows)
+	        ? features::matchMutualGrouped(q.desc, cand, match_, q.groups, groupsOf(cand))
+	        : features::matchMutual(q.desc, cand, match_);
 	std::vector<Eigen::Vector3f> p, m;
 	for (const auto& mt : matches)
 	{
@@ -272,6 +291,8 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	q.desc = descriptorMat(kf.data->descriptors);
 	for (std::size_t i = 0; i < n; i++)
 		q.pts.emplace_back(kf.data->xyz[3 * i], kf.data->xyz[3 * i + 1], kf.data->xyz[3 * i + 2]);
+	if (directLevels_ > 0 && vocab_ && n > 0)
+		q.groups = groupsOf(q.desc);
 
 	if (!retiring_.empty())
 		retire(map.sessions - 1, kf.stamp);

@@ -55,7 +55,12 @@ class BowLoopDetector : public LoopDetector
 		bool groundValid = false;
 		Eigen::Vector3d groundN = Eigen::Vector3d::UnitZ();
 		double groundD = 0;
+		/** direct_index_levels_up > 0: the vocabulary node of each feature. */
+		std::vector<uint32_t> groups;
 	};
+	/** The vocabulary node `directLevels_` levels above the leaves of each descriptor row. */
+	std::vector<uint32_t> groupsOf(const cv::Mat& desc) const;
+	int directLevels_ = 0;
 	/** T_anchor_query with its height from the ground planes of the query and of keyframe
 	 *  `kf` (nearest to it in the local map): unchanged when either has none; nullopt when
 	 *  the registration tilts the query's plane more than groundMaxTilt_deg_ off the

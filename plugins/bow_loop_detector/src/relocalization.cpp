@@ -38,6 +38,8 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 	q.groundN =
 	    Eigen::Vector3d(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
 	q.groundD = raster.groundD;
+	if (directLevels_ > 0)
+		q.groups = groupsOf(q.desc);
 	if (canonicalYaw_)
 	{
 		const auto words = canonicalWords(scan, raster);
@@ -69,6 +71,8 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 		res.reason = "features";
 		return res;
 	}
+	if (directLevels_ > 0)
+		q.groups = groupsOf(q.desc);
 	return relocalizeQuery(q, static_cast<uint32_t>(query.id * 29 + 7 + onlyKeyframe), map, poses);
 }
 

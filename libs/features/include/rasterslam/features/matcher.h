@@ -45,4 +45,12 @@ std::vector<Match> matchMutual(const cv::Mat& descA, const cv::Mat& descB, const
                                const std::vector<Eigen::Vector3f>* posA = nullptr,
                                const std::vector<Eigen::Vector3f>* posB = nullptr);
 
+/** Mutual nearest neighbours among the pairs in the same group only (groupA[i] == groupB[j]):
+ *  a bag-of-words direct index, whose groups are vocabulary nodes, so that descriptors under
+ *  different nodes are never compared (DBoW2's way). The ratio test compares the best and
+ *  second best within the group. */
+std::vector<Match> matchMutualGrouped(const cv::Mat& descA, const cv::Mat& descB,
+                                      const MatchParams& p, const std::vector<uint32_t>& groupA,
+                                      const std::vector<uint32_t>& groupB);
+
 }  // namespace rasterslam::features
