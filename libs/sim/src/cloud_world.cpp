@@ -29,7 +29,9 @@ std::int64_t voxelKey(double x, double y, double z, double voxel)
 
 std::int64_t columnKey(std::int64_t cx, std::int64_t cy)
 {
-	return (cx << 32) ^ (cy & 0xffffffffLL);
+	// Unsigned: shifting a negative value left is undefined.
+	const auto ux = static_cast<std::uint64_t>(cx), uy = static_cast<std::uint64_t>(cy);
+	return static_cast<std::int64_t>((ux << 32) ^ (uy & 0xffffffffULL));
 }
 }  // namespace
 
