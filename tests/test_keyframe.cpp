@@ -76,6 +76,22 @@ TEST(Keyframe, SerializationRoundTrip)
 	arch3 << bad2;
 	buf3.Seek(0);
 	EXPECT_ANY_THROW(arch3.ReadObject());
+	// A ground flag other than 0 or 1 is refused (fuzz_map_store: reading 220 into a bool).
+	{
+		mrpt::io::CMemoryStream b5;
+		auto a5 = mrpt::serialization::archiveFrom(b5);
+		a5 << k;
+		auto* p5 = static_cast<uint8_t*>(b5.getRawBufferData());
+		const std::string raw5(reinterpret_cast<const char*>(p5), b5.getTotalBytesCount());
+		const float plane[4] = {k.groundN[0], k.groundN[1], k.groundN[2], k.groundD};
+		const auto at5 = raw5.find(std::string(reinterpret_cast<const char*>(plane), 16));
+		ASSERT_NE(at5, std::string::npos);
+		ASSERT_GT(at5, 0u);
+		ASSERT_EQ(p5[at5 - 1], 1);  // the flag
+		p5[at5 - 1] = 220;
+		b5.Seek(0);
+		EXPECT_ANY_THROW(a5.ReadObject());
+	}
 	// A ground normal that is not unit is refused.
 	Keyframe bad3 = k;
 	bad3.groundN[2] = 2;

@@ -23,7 +23,8 @@ uint8_t Keyframe::serializeGetVersion() const
 void Keyframe::serializeTo(mrpt::serialization::CArchive& out) const
 {
 	out << id << session << scanIndex << stamp << pose << u << v << angle << response << octave
-	    << xyz << descriptors << groundValid << groundN[0] << groundN[1] << groundN[2] << groundD;
+	    << xyz << descriptors << static_cast<uint8_t>(groundValid ? 1 : 0) << groundN[0]
+	    << groundN[1] << groundN[2] << groundD;
 }
 
 void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -46,7 +47,13 @@ void Keyframe::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 			groundD = 0;
 			if (version >= 2)
 			{
-				in >> groundValid >> groundN[0] >> groundN[1] >> groundN[2] >> groundD;
+				// A byte, not a bool: any other value than 0 or 1 read into a bool is undefined
+				// (found by fuzz_map_store).
+				uint8_t valid = 0;
+				in >> valid >> groundN[0] >> groundN[1] >> groundN[2] >> groundD;
+				if (valid > 1)
+					THROW_EXCEPTION("rasterslam::Keyframe: ground flag not 0 or 1 in the stream");
+				groundValid = valid == 1;
 				const float norm = std::sqrt(groundN[0] * groundN[0] + groundN[1] * groundN[1] +
 				                             groundN[2] * groundN[2]);
 				if (groundValid && (!(std::abs(norm - 1) < 1e-3f) || !std::isfinite(groundD)))
