@@ -3,8 +3,10 @@
 #include <dlfcn.h>
 #include <elf.h>
 #include <link.h>
+#include <malloc.h>
 #include <mrpt/rtti/CObject.h>
 
+#include <atomic>
 #include <fstream>
 #include <iterator>
 #include <new>
@@ -92,7 +94,12 @@ void registerProjectClasses()
 // the process), so a length field that MRPT trusts (a string or a vector of a damaged object)
 // would end every run although the programs handle it. The cap here is 256 MB (a single
 // allocation; RASTERSLAM_FUZZ_MAX_ALLOC_MB changes it; ASAN_OPTIONS=max_allocation_size_mb
-// does the same for malloc, see scripts/fuzz.sh); the run's total stays under -rss_limit_mb.
+// does the same for malloc, see scripts/fuzz.sh). The programs' cap is on the total as well
+// (RLIMIT_DATA): here the memory held through operator new is capped at 768 MB in all
+// (RASTERSLAM_FUZZ_MAX_TOTAL_MB), below libFuzzer's -rss_limit_mb. A count that MRPT trusts and
+// fills in many small allocations (CSensoryFrame's observation count sizes a std::deque: a
+// 193-byte file asked for 2.7 GB) then fails with std::bad_alloc as in the programs, instead
+// of ending the run.
 // These replace ASan's new/delete (memory comes from its malloc, so overflows, use after free
 // and leaks are still found; a mismatch of new and free is not).
 namespace
@@ -108,19 +115,47 @@ std::size_t maxAllocation()
 	return cap;
 }
 
+std::size_t maxTotal()
+{
+	static const std::size_t cap = []
+	{
+		const char* env = std::getenv("RASTERSLAM_FUZZ_MAX_TOTAL_MB");
+		const unsigned long long mb = env && *env ? std::strtoull(env, nullptr, 10) : 768;
+		return static_cast<std::size_t>(mb) << 20;
+	}();
+	return cap;
+}
+
+/** Bytes held through operator new (as malloc_usable_size counts them; signed, so that a
+ *  block allocated with malloc and freed with delete cannot wrap it). */
+std::atomic<long long> g_held{0};
+
+void* allocateNoThrow(std::size_t n) noexcept
+{
+	if (n > maxAllocation() || g_held.load(std::memory_order_relaxed) + static_cast<long long>(n) >
+	                               static_cast<long long>(maxTotal()))
+		return nullptr;
+	void* p = std::malloc(n ? n : 1);
+	if (p)
+		g_held.fetch_add(static_cast<long long>(::malloc_usable_size(p)),
+		                 std::memory_order_relaxed);
+	return p;
+}
+
 void* allocate(std::size_t n)
 {
-	if (n > maxAllocation())
-		throw std::bad_alloc();
-	void* p = std::malloc(n ? n : 1);
+	void* p = allocateNoThrow(n);
 	if (!p)
 		throw std::bad_alloc();
 	return p;
 }
 
-void* allocateNoThrow(std::size_t n) noexcept
+void release(void* p) noexcept
 {
-	return n > maxAllocation() ? nullptr : std::malloc(n ? n : 1);
+	if (!p)
+		return;
+	g_held.fetch_sub(static_cast<long long>(::malloc_usable_size(p)), std::memory_order_relaxed);
+	std::free(p);
 }
 }  // namespace
 
@@ -142,25 +177,25 @@ void* operator new[](std::size_t n, const std::nothrow_t&) noexcept
 }
 void operator delete(void* p) noexcept
 {
-	std::free(p);
+	release(p);
 }
 void operator delete[](void* p) noexcept
 {
-	std::free(p);
+	release(p);
 }
 void operator delete(void* p, std::size_t) noexcept
 {
-	std::free(p);
+	release(p);
 }
 void operator delete[](void* p, std::size_t) noexcept
 {
-	std::free(p);
+	release(p);
 }
 void operator delete(void* p, const std::nothrow_t&) noexcept
 {
-	std::free(p);
+	release(p);
 }
 void operator delete[](void* p, const std::nothrow_t&) noexcept
 {
-	std::free(p);
+	release(p);
 }
