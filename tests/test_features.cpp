@@ -1,5 +1,6 @@
 // Features of the tracking: the closed-form rigid fit and its RANSAC, the information matrix,
 // mutual Hamming matching with its spatial gate, and ORB over a grid.
+#include <rasterslam/features/icp.h>
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/rigid_ransac.h>
@@ -420,4 +421,94 @@ TEST(Orb, DistributeOverGridServesEveryCell)
 	EXPECT_EQ(weakestKept, cornerResp[64 - lone.size() - 1]);
 	// No more than n asked: unchanged.
 	EXPECT_EQ(features::distributeOverGrid(kps, 400, 400, 4, 4, 5000).size(), kps.size());
+}
+
+namespace
+{
+/** Points on a ground plane (z = 0, 40 x 40 m) and on the walls given as (x0, y0, x1, y1)
+ *  segments 4 m high, about every 0.1 m, with 1 cm of noise. */
+std::vector<Eigen::Vector3f> scene(const std::vector<Eigen::Vector4f>& walls, uint32_t seed)
+{
+	std::mt19937 rng(seed);
+	std::normal_distribution<float> noise(0.f, 0.01f);
+	std::vector<Eigen::Vector3f> pts;
+	for (float x = -20; x < 20; x += 0.1f)
+		for (float y = -20; y < 20; y += 0.1f)
+			pts.emplace_back(x + noise(rng), y + noise(rng), noise(rng));
+	for (const auto& w : walls)
+	{
+		const Eigen::Vector2f a(w[0], w[1]), b(w[2], w[3]);
+		const float len = (b - a).norm();
+		for (float s = 0; s < len; s += 0.1f)
+			for (float z = 0.1f; z < 4; z += 0.1f)
+			{
+				const Eigen::Vector2f p = a + (b - a) * (s / len);
+				pts.emplace_back(p.x() + noise(rng), p.y() + noise(rng), z + noise(rng));
+			}
+	}
+	return pts;
+}
+std::vector<Eigen::Vector3f> moved(const std::vector<Eigen::Vector3f>& pts,
+                                   const Eigen::Isometry3d& T)
+{
+	std::vector<Eigen::Vector3f> out;
+	for (const auto& p : pts)
+		out.push_back((T * p.cast<double>()).cast<float>());
+	return out;
+}
+}  // namespace
+
+TEST(Icp, RecoversAMotionAndReportsWhatGeometryLeavesFree)
+{
+	// The source is the scene seen from a pose 0.5 m, 0.3 m and 3 deg away from the target's;
+	// ICP starts from identity.
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.translation() = Eigen::Vector3d(0.5, 0.3, 0.0);
+	T.linear() = Eigen::AngleAxisd(3 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+	const Eigen::Isometry3d Tinv = T.inverse();
+	// A yard: walls on three sides pin every direction.
+	{
+		const auto target =
+		    scene({{-15, -15, 15, -15}, {15, -15, 15, 15}, {-15, 15, 15, 15}, {-5, -3, -5, 3}}, 1);
+		const auto r =
+		    features::icpPointToPlane(moved(target, Tinv), target, Eigen::Isometry3d::Identity());
+		ASSERT_TRUE(r.converged);
+		EXPECT_LT((r.T.translation() - T.translation()).norm(), 0.01)
+		    << r.T.translation().transpose();
+		EXPECT_LT(Eigen::AngleAxisd(r.T.linear().transpose() * T.linear()).angle() / kDeg, 0.05);
+		EXPECT_GT(r.overlap, 0.9);
+		EXPECT_GT(r.constraint, 0.02);
+	}
+	// A corridor along x: nothing pins x. The across and up directions are still found, the
+	// constraint says the rest is free.
+	{
+		const auto target = scene({{-20, -4, 20, -4}, {-20, 4, 20, 4}}, 2);
+		Eigen::Isometry3d Tc = Eigen::Isometry3d::Identity();
+		Tc.translation() = Eigen::Vector3d(0.5, 0.3, 0.1);
+		const auto r = features::icpPointToPlane(moved(target, Tc.inverse()), target,
+		                                         Eigen::Isometry3d::Identity());
+		EXPECT_NEAR(r.T.translation().y(), 0.3, 0.01);
+		EXPECT_NEAR(r.T.translation().z(), 0.1, 0.01);
+		EXPECT_LT(r.constraint, 0.005);
+	}
+	// Flat ground only: x, y and yaw are free.
+	{
+		const auto target = scene({}, 3);
+		const auto r =
+		    features::icpPointToPlane(moved(target, Tinv), target, Eigen::Isometry3d::Identity());
+		EXPECT_LT(r.constraint, 1e-3);
+	}
+}
+
+TEST(Icp, VoxelDownsampleKeepsOnePointAVoxel)
+{
+	const std::vector<Eigen::Vector3f> pts = {{0.05f, 0.05f, 0.05f}, {0.15f, 0.05f, 0.05f},
+	                                          {0.06f, 0.04f, 0.05f}, {-0.05f, 0.05f, 0.05f},
+	                                          {1e30f, 0, 0},         {NAN, 0, 0}};
+	const auto v = features::voxelDownsample(pts, 0.1);
+	ASSERT_EQ(v.size(), 3u);  // three voxels; the far and the NaN points are dropped
+	bool sawMean = false;
+	for (const auto& p : v)
+		sawMean = sawMean || (p - Eigen::Vector3f(0.055f, 0.045f, 0.05f)).norm() < 1e-6f;
+	EXPECT_TRUE(sawMean);
 }

@@ -1,8 +1,10 @@
 // The paper's laser pose estimation: ORB features on the elevation image, matched against the
-// last keyframe, RANSAC, back-projection to 3D and the closed-form rigid fit of equation (2).
+// last keyframe, RANSAC, back-projection to 3D and the closed-form rigid fit of equation (2);
+// point-to-plane ICP on the points when the features fail.
 #include <mrpt/core/initializer.h>
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/features/icp.h>
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/rigid_ransac.h>
@@ -42,6 +44,18 @@ class OrbOdometry : public Odometry
 	features::RigidResult track(const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior,
 	                            bool gated, std::size_t seed);
 	Keyframe::Ptr keyframeOf(const Frame& f) const;
+	using Cloud = std::vector<Eigen::Vector3f>;
+	/** Every fallback_stride-th point of the scan within the fallback's range. */
+	Cloud sampleOf(const Scan& scan) const;
+	struct Recovery
+	{
+		Eigen::Isometry3d T_prev_curr;
+		Eigen::Matrix<double, 6, 6> information;  //!< x y z yaw pitch roll (MRPT's order)
+	};
+	/** Lost by the features: registers the scan's points on the previous scan's
+	 *  (point-to-plane ICP from the constant-velocity prior). None when it does not converge,
+	 *  overlaps too little, or the geometry leaves some motion free. */
+	std::optional<Recovery> fallback(const Cloud& cur, std::string& why) const;
 
 	features::OrbParams orbParams_;
 	features::MatchParams match_;
@@ -52,6 +66,11 @@ class OrbOdometry : public Odometry
 	bool constantVelocity_ = true;
 	bool alignGround_ = true;
 	double groundMaxCorrection_deg_ = 2.0;
+	bool fallback_ = true;  //!< lost_fallback: icp
+	int fallbackStride_ = 4;
+	features::IcpParams icp_;
+	double fallbackMinOverlap_ = 0.5, fallbackMaxRange_m_ = 60.0, fallbackMinConstraint_ = 0.02;
+	Cloud prevCloud_;  //!< sample of the previous scan (fallback on; empty: none)
 
 	std::unique_ptr<features::OrbExtractor> orb_;
 	std::unique_ptr<Frame> kf_;
@@ -100,6 +119,24 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
 	alignGround_ = p.getBool("align_ground", alignGround_);
 	groundMaxCorrection_deg_ = p.getDouble("ground_max_correction_deg", groundMaxCorrection_deg_);
+	fallback_ = p.getChoice("lost_fallback", "icp", {"icp", "none"}) == "icp";
+	fallbackStride_ = p.getInt("fallback_stride", fallbackStride_);
+	icp_ = features::IcpParams();
+	icp_.voxel_m = p.getDouble("fallback_voxel_m", icp_.voxel_m);
+	icp_.maxCorrespondence_m =
+	    p.getDouble("fallback_max_correspondence_m", icp_.maxCorrespondence_m);
+	icp_.inlier_m = p.getDouble("fallback_inlier_m", icp_.inlier_m);
+	fallbackMinOverlap_ = p.getDouble("fallback_min_overlap", fallbackMinOverlap_);
+	fallbackMaxRange_m_ = p.getDouble("fallback_max_range_m", fallbackMaxRange_m_);
+	fallbackMinConstraint_ = p.getDouble("fallback_min_constraint", fallbackMinConstraint_);
+	p.requireRange(fallbackStride_, 1, 1000, "fallback_stride");
+	p.requireRange(icp_.voxel_m, 0.01, 100, "fallback_voxel_m");
+	p.requirePositive(icp_.maxCorrespondence_m, "fallback_max_correspondence_m");
+	p.requirePositive(icp_.inlier_m, "fallback_inlier_m");
+	p.requireRange(fallbackMinOverlap_, 0, 1, "fallback_min_overlap");
+	p.requirePositive(fallbackMaxRange_m_, "fallback_max_range_m");
+	p.requireRange(fallbackMinConstraint_, 0, 1, "fallback_min_constraint");
+	prevCloud_.clear();
 	// Upper bounds far beyond use (an elevation image has about 250,000 pixels; OpenCV's ORB
 	// defaults to 8 levels): larger values only overflow counts or exhaust memory.
 	p.requireRange(o.numFeatures, 1, features::kMaxFeatures, "num_features");
@@ -245,6 +282,67 @@ Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const
 	return k;
 }
 
+OrbOdometry::Cloud OrbOdometry::sampleOf(const Scan& scan) const
+{
+	Cloud c;
+	c.reserve(scan.points.size() / static_cast<std::size_t>(fallbackStride_) + 1);
+	const double r2max = fallbackMaxRange_m_ * fallbackMaxRange_m_;
+	for (std::size_t i = 0; i < scan.points.size(); i += static_cast<std::size_t>(fallbackStride_))
+	{
+		const auto& q = scan.points[i];
+		const double r2 = double(q.x) * q.x + double(q.y) * q.y + double(q.z) * q.z;
+		if (r2 >= 1.0 && r2 <= r2max)  // false for NaN
+			c.emplace_back(q.x, q.y, q.z);
+	}
+	return c;
+}
+
+std::optional<OrbOdometry::Recovery> OrbOdometry::fallback(const Cloud& cur, std::string& why) const
+{
+	if (prevCloud_.empty())
+	{
+		why = "no previous scan";
+		return std::nullopt;
+	}
+	const auto icp = features::icpPointToPlane(cur, prevCloud_, velocity_, icp_);
+	if (icp.sourcePoints < 100)
+	{
+		why = "too few points (" + std::to_string(icp.sourcePoints) + ")";
+		return std::nullopt;
+	}
+	if (!icp.converged)
+	{
+		why = "ICP did not converge in " + std::to_string(icp.iterations) + " iterations";
+		return std::nullopt;
+	}
+	// Overlap: the share of the scan's points near the previous scan's planes. Constraint:
+	// a plane pins the motion along its normal only, so ground alone leaves x, y and yaw
+	// free, and a corridor its length.
+	if (icp.overlap < fallbackMinOverlap_)
+	{
+		why = "overlap " + std::to_string(icp.overlap) + " below fallback_min_overlap";
+		return std::nullopt;
+	}
+	if (icp.constraint < fallbackMinConstraint_)
+	{
+		why = "degenerate geometry (constraint " + std::to_string(icp.constraint) +
+		      " below fallback_min_constraint)";
+		return std::nullopt;
+	}
+	Recovery rec;
+	rec.T_prev_curr = icp.T;
+	// Information of the step: H / sigma^2, reordered to MRPT's (x y z yaw pitch roll) from
+	// (x y z rx ry rz).
+	Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Zero();
+	const int order[6] = {0, 1, 2, 5, 4, 3};
+	for (int a = 0; a < 6; a++)
+		S(a, order[a]) = 1.0;
+	rec.information = S * icp.H * S.transpose() / (sigma_m_ * sigma_m_);
+	why = "overlap " + std::to_string(icp.overlap) + ", constraint " +
+	      std::to_string(icp.constraint) + ", " + std::to_string(icp.iterations) + " iterations";
+	return rec;
+}
+
 OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 {
 	if (!raster)
@@ -264,6 +362,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		kf_ = std::move(cur);
 		T_kf_prev_.setIdentity();
 		sinceKf_ = 0;
+		prevCloud_ = fallback_ ? sampleOf(scan) : Cloud();
 		return r;
 	}
 
@@ -299,6 +398,29 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	else
 		r.message = "only " + std::to_string(est.inliers.size()) + " inliers among " +
 		            std::to_string(cur->kps.size()) + " features";
+	// The scan's point sample, kept for the next scan's fallback.
+	Cloud curSample = fallback_ ? sampleOf(scan) : Cloud();
+	bool recovered = false;
+	std::optional<Recovery> recovery;
+	if (!ok && fallback_)
+	{
+		// The features failed (a featureless street, a fast turn): register the points.
+		std::string why;
+		recovery = fallback(curSample, why);
+		const auto* step = recovery ? &recovery->T_prev_curr : nullptr;
+		if (step && step->translation().norm() <= maxStep_m_)
+		{
+			est.T = T_kf_prev_ * *step;
+			ok = recovered = true;
+			bridged = true;  // no ground alignment; the frame becomes the reference
+			r.message = r.message + "; recovered by ICP (" + why + ")";
+		}
+		else
+			r.message +=
+			    "; ICP fallback failed (" +
+			    (step ? "a step of " + std::to_string(step->translation().norm()) + " m" : why) +
+			    ")";
+	}
 
 	++sinceKf_;
 	if (ok)
@@ -306,8 +428,14 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		T_kf_curr = alignGround_ && !bridged ? alignGround(est.T, *kf_, *cur) : est.T;
 		r.status = TrackingStatus::Ok;
 		r.inliers = est.inliers.size();
-		r.information = mrpt::math::CMatrixDouble66(
-		    features::pointToPointInformation(cur->pts, est.inliers, sigma_m_));
+		if (recovered)
+		{
+			r.information = mrpt::math::CMatrixDouble66(recovery->information);
+			MRPT_LOG_INFO_STREAM("scan " << scan.index << ": " << r.message);
+		}
+		else
+			r.information = mrpt::math::CMatrixDouble66(
+			    features::pointToPointInformation(cur->pts, est.inliers, sigma_m_));
 	}
 	else
 	{
@@ -331,6 +459,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	const bool usable = static_cast<int>(cur->kps.size()) >= ransac_.minInliers;
 	r.keyframe = usable && ((sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ ||
 	                        !ok || bridged);
+	prevCloud_ = std::move(curSample);
 	if (!usable)
 	{
 		// Keep tracking against the keyframe; the prior stands in for this frame, and the

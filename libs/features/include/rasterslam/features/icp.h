@@ -1,0 +1,53 @@
+// Point-to-plane ICP between two point clouds (a scan against the previous one, or against a
+// map): voxel reduction, normals from the neighbours, Gauss-Newton with a Huber weight, and
+// how well the result is pinned down (overlap and the smallest eigenvalue of the normal
+// matrix), so that a caller can refuse a degenerate alignment (flat ground, a corridor).
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <vector>
+
+namespace rasterslam::features
+{
+struct IcpParams
+{
+	double voxel_m = 0.4;              //!< both clouds are reduced to one point a voxel
+	double maxCorrespondence_m = 1.0;  //!< farther pairs are not matched
+	double inlier_m = 0.3;             //!< a point this close counts for the overlap
+	double huber_m = 0.1;              //!< residuals above this are down-weighted
+	int maxIterations = 30;
+	int normalNeighbours = 10;  //!< points the target's normals are fitted to
+	double minPlanarity = 0.7;  //!< 1 - 3 * smallest / sum of eigenvalues, else no normal
+	double convergedTranslation_m = 1e-4;
+	double convergedRotation_rad = 1e-5;
+	double lever_m = 10.0;  //!< rotation is weighed by its effect at this distance
+};
+
+struct IcpResult
+{
+	bool converged = false;
+	int iterations = 0;
+	/** The source's pose in the target's frame (maps source points onto the target). */
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	std::size_t sourcePoints = 0;  //!< after the voxel reduction
+	std::size_t matched = 0;       //!< source points with a plane within inlier_m at the end
+	double overlap = 0;            //!< matched / sourcePoints
+	/** Normal matrix sum of [n; p x n][n; p x n]^T over the matched points, order
+	 *  (x y z rx ry rz), rotation in radians. H / sigma^2 is the information of T. */
+	Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+	/** Smallest eigenvalue of H with rotation scaled by lever_m, per matched point: about 0
+	 *  when some motion is not pinned (ground alone: x, y, yaw), up to 1/3. */
+	double constraint = 0;
+};
+
+/** One point per occupied voxel (the mean of its points). */
+std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>& pts,
+                                             double voxel_m);
+
+/** Aligns `source` on `target` from `initial` (source pose in the target's frame). */
+IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& source,
+                          const std::vector<Eigen::Vector3f>& target,
+                          const Eigen::Isometry3d& initial, const IcpParams& params = {});
+
+}  // namespace rasterslam::features

@@ -1,0 +1,219 @@
+#include <rasterslam/features/icp.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdint>
+#include <nanoflann.hpp>
+#include <unordered_map>
+
+namespace rasterslam::features
+{
+namespace
+{
+struct CloudAdaptor
+{
+	const std::vector<Eigen::Vector3f>& pts;
+	std::size_t kdtree_get_point_count() const { return pts.size(); }
+	float kdtree_get_pt(std::size_t i, std::size_t d) const { return pts[i][static_cast<int>(d)]; }
+	template <class B>
+	bool kdtree_get_bbox(B&) const
+	{
+		return false;
+	}
+};
+using KdTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>,
+                                        CloudAdaptor, 3, uint32_t>;
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v)
+{
+	Eigen::Matrix3d S;
+	S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+	return S;
+}
+
+/** exp of a twist (translation first, rotation vector second), applied on the left. */
+Eigen::Isometry3d expTwist(const Eigen::Matrix<double, 6, 1>& d)
+{
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	const Eigen::Vector3d w = d.tail<3>();
+	const double a = w.norm();
+	T.linear() = a > 1e-12 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix()
+	                       : Eigen::Matrix3d::Identity() + skew(w);
+	T.translation() = d.head<3>();
+	return T;
+}
+}  // namespace
+
+std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>& pts,
+                                             double voxel_m)
+{
+	struct Acc
+	{
+		Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+		int n = 0;
+	};
+	std::unordered_map<uint64_t, Acc> cells;
+	cells.reserve(pts.size() / 4 + 1);
+	const double inv = 1.0 / voxel_m;
+	constexpr int64_t kOffset = int64_t(1) << 20;  // cells +-1M voxels from the origin
+	for (const auto& p : pts)
+	{
+		if (!p.allFinite())
+			continue;
+		int64_t c[3];
+		bool inside = true;
+		for (int k = 0; k < 3 && inside; k++)
+		{
+			const double f = std::floor(p[k] * inv) + static_cast<double>(kOffset);
+			inside = f >= 0 && f < static_cast<double>(2 * kOffset);  // before the cast
+			c[k] = inside ? static_cast<int64_t>(f) : 0;
+		}
+		if (!inside)
+			continue;
+		// 21 bits each, combined without shifting negative values.
+		const uint64_t key = static_cast<uint64_t>(c[0]) * (uint64_t(1) << 42) +
+		                     static_cast<uint64_t>(c[1]) * (uint64_t(1) << 21) +
+		                     static_cast<uint64_t>(c[2]);
+		auto& a = cells[key];
+		a.sum += p.cast<double>();
+		++a.n;
+	}
+	std::vector<Eigen::Vector3f> out;
+	out.reserve(cells.size());
+	for (const auto& [k, a] : cells)
+		out.push_back((a.sum / a.n).cast<float>());
+	return out;
+}
+
+IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn,
+                          const std::vector<Eigen::Vector3f>& targetIn,
+                          const Eigen::Isometry3d& initial, const IcpParams& prm)
+{
+	IcpResult res;
+	res.T = initial;
+	const auto src = voxelDownsample(sourceIn, prm.voxel_m);
+	const auto dst = voxelDownsample(targetIn, prm.voxel_m);
+	res.sourcePoints = src.size();
+	const int k = std::max(3, prm.normalNeighbours);
+	if (src.size() < 6 || dst.size() < static_cast<std::size_t>(k))
+		return res;
+	const CloudAdaptor adaptor{dst};
+	const KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+
+	// Target normals: the smallest principal direction of the neighbourhood, when it is flat.
+	std::vector<Eigen::Vector3f> normals(dst.size(), Eigen::Vector3f::Zero());
+	std::vector<uint32_t> idx(static_cast<std::size_t>(k));
+	std::vector<float> d2(static_cast<std::size_t>(k));
+	for (std::size_t i = 0; i < dst.size(); i++)
+	{
+		const std::size_t n =
+		    tree.knnSearch(dst[i].data(), static_cast<std::size_t>(k), idx.data(), d2.data());
+		if (n < 3)
+			continue;
+		Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+		for (std::size_t j = 0; j < n; j++)
+			mean += dst[idx[j]].cast<double>();
+		mean /= static_cast<double>(n);
+		Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+		for (std::size_t j = 0; j < n; j++)
+		{
+			const Eigen::Vector3d e = dst[idx[j]].cast<double>() - mean;
+			C += e * e.transpose();
+		}
+		const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+		const double sum = es.eigenvalues().sum();
+		if (!(sum > 0) || 1.0 - 3.0 * es.eigenvalues()(0) / sum < prm.minPlanarity)
+			continue;
+		normals[i] = es.eigenvectors().col(0).cast<float>();
+	}
+
+	const float maxD2 = static_cast<float>(prm.maxCorrespondence_m * prm.maxCorrespondence_m);
+	using Mat6 = Eigen::Matrix<double, 6, 6>;
+	using Vec6 = Eigen::Matrix<double, 6, 1>;
+	uint32_t nn = 0;
+	float nd2 = 0;
+	for (res.iterations = 0; res.iterations < prm.maxIterations; res.iterations++)
+	{
+		Mat6 A = Mat6::Zero();
+		Vec6 b = Vec6::Zero();
+		std::size_t used = 0;
+		for (const auto& p : src)
+		{
+			const Eigen::Vector3d q = res.T * p.cast<double>();
+			const Eigen::Vector3f qf = q.cast<float>();
+			if (tree.knnSearch(qf.data(), 1, &nn, &nd2) != 1 || nd2 > maxD2)
+				continue;
+			const Eigen::Vector3f& nf = normals[nn];
+			if (nf.squaredNorm() < 0.5f)
+				continue;
+			const Eigen::Vector3d n = nf.cast<double>();
+			const double r = n.dot(q - dst[nn].cast<double>());
+			Vec6 J;
+			J.head<3>() = n;
+			J.tail<3>() = q.cross(n);
+			const double w = std::abs(r) <= prm.huber_m ? 1.0 : prm.huber_m / std::abs(r);
+			A += w * J * J.transpose();
+			b -= w * J * r;
+			++used;
+		}
+		if (used < 6)
+			return res;
+		// Solved along the eigenvectors of the normal matrix (rotation scaled by lever_m):
+		// a direction nothing pins (x, y and yaw over flat ground) gets no update instead of
+		// drifting on noise, and the constraint measure below reports it.
+		Vec6 D;
+		D << 1, 1, 1, 1 / prm.lever_m, 1 / prm.lever_m, 1 / prm.lever_m;
+		const Mat6 As = D.asDiagonal() * A * D.asDiagonal();
+		const Eigen::SelfAdjointEigenSolver<Mat6> es(As);
+		const Vec6 bs = D.asDiagonal() * b;
+		Vec6 ds = Vec6::Zero();
+		const double floor = 1e-3 * static_cast<double>(used);
+		for (int e = 0; e < 6; e++)
+			if (es.eigenvalues()(e) > floor)
+				ds += es.eigenvectors().col(e) *
+				      (es.eigenvectors().col(e).dot(bs) / es.eigenvalues()(e));
+		const Vec6 d = D.asDiagonal() * ds;
+		if (!d.allFinite())
+			return res;
+		res.T = expTwist(d) * res.T;
+		if (d.head<3>().norm() < prm.convergedTranslation_m &&
+		    d.tail<3>().norm() < prm.convergedRotation_rad)
+		{
+			res.converged = true;
+			++res.iterations;
+			break;
+		}
+	}
+	// Orthonormal, whatever rounding did.
+	res.T.linear() = Eigen::Quaterniond(res.T.linear()).normalized().toRotationMatrix();
+
+	// How well the result is pinned down: overlap and the normal matrix at the solution.
+	const float in2 = static_cast<float>(prm.inlier_m * prm.inlier_m);
+	Mat6 Hs = Mat6::Zero();
+	for (const auto& p : src)
+	{
+		const Eigen::Vector3d q = res.T * p.cast<double>();
+		const Eigen::Vector3f qf = q.cast<float>();
+		if (tree.knnSearch(qf.data(), 1, &nn, &nd2) != 1 || nd2 > in2)
+			continue;
+		++res.matched;
+		const Eigen::Vector3f& nf = normals[nn];
+		if (nf.squaredNorm() < 0.5f)
+			continue;
+		const Eigen::Vector3d n = nf.cast<double>();
+		Vec6 J;
+		J.head<3>() = n;
+		J.tail<3>() = q.cross(n);
+		res.H += J * J.transpose();
+		J.tail<3>() /= prm.lever_m;
+		Hs += J * J.transpose();
+	}
+	res.overlap = static_cast<double>(res.matched) / static_cast<double>(src.size());
+	if (res.matched > 0)
+		res.constraint = Eigen::SelfAdjointEigenSolver<Mat6>(Hs).eigenvalues().minCoeff() /
+		                 static_cast<double>(res.matched);
+	return res;
+}
+
+}  // namespace rasterslam::features
