@@ -53,9 +53,11 @@ class OrbOdometry : public Odometry
 		Eigen::Matrix<double, 6, 6> information;  //!< x y z yaw pitch roll (MRPT's order)
 	};
 	/** Lost by the features: registers the scan's points on the previous scan's
-	 *  (point-to-plane ICP from the constant-velocity prior). None when it does not converge,
+	 *  (point-to-plane ICP from each start; the converged one with the most overlap). None
+	 *  when none converges,
 	 *  overlaps too little, or the geometry leaves some motion free. */
-	std::optional<Recovery> fallback(const Cloud& cur, std::string& why) const;
+	std::optional<Recovery> fallback(const Cloud& cur, const std::vector<Eigen::Isometry3d>& starts,
+	                                 std::string& why) const;
 
 	features::OrbParams orbParams_;
 	features::MatchParams match_;
@@ -69,7 +71,7 @@ class OrbOdometry : public Odometry
 	bool fallback_ = true;  //!< lost_fallback: icp
 	int fallbackStride_ = 4;
 	features::IcpParams icp_;
-	double fallbackMinOverlap_ = 0.5, fallbackMaxRange_m_ = 60.0, fallbackMinConstraint_ = 0.02;
+	double fallbackMinOverlap_ = 0.4, fallbackMaxRange_m_ = 60.0, fallbackMinConstraint_ = 0.02;
 	Cloud prevCloud_;  //!< sample of the previous scan (fallback on; empty: none)
 
 	std::unique_ptr<features::OrbExtractor> orb_;
@@ -297,24 +299,35 @@ OrbOdometry::Cloud OrbOdometry::sampleOf(const Scan& scan) const
 	return c;
 }
 
-std::optional<OrbOdometry::Recovery> OrbOdometry::fallback(const Cloud& cur, std::string& why) const
+std::optional<OrbOdometry::Recovery> OrbOdometry::fallback(
+    const Cloud& cur, const std::vector<Eigen::Isometry3d>& starts, std::string& why) const
 {
 	if (prevCloud_.empty())
 	{
 		why = "no previous scan";
 		return std::nullopt;
 	}
-	const auto icp = features::icpPointToPlane(cur, prevCloud_, velocity_, icp_);
-	if (icp.sourcePoints < 100)
+	std::optional<features::IcpResult> best;
+	int iterations = 0;
+	for (const auto& start : starts)
 	{
-		why = "too few points (" + std::to_string(icp.sourcePoints) + ")";
+		auto icp = features::icpPointToPlane(cur, prevCloud_, start, icp_);
+		if (icp.sourcePoints < 100)
+		{
+			why = "too few points (" + std::to_string(icp.sourcePoints) + ")";
+			return std::nullopt;
+		}
+		iterations = std::max(iterations, icp.iterations);
+		if (icp.converged && (!best || icp.overlap > best->overlap))
+			best = std::move(icp);
+	}
+	if (!best)
+	{
+		why = "ICP did not converge in " + std::to_string(iterations) + " iterations from " +
+		      std::to_string(starts.size()) + " start(s)";
 		return std::nullopt;
 	}
-	if (!icp.converged)
-	{
-		why = "ICP did not converge in " + std::to_string(icp.iterations) + " iterations";
-		return std::nullopt;
-	}
+	const auto& icp = *best;
 	// Overlap: the share of the scan's points near the previous scan's planes. Constraint:
 	// a plane pins the motion along its normal only, so ground alone leaves x, y and yaw
 	// free, and a corridor its length.
@@ -406,7 +419,15 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	{
 		// The features failed (a featureless street, a fast turn): register the points.
 		std::string why;
-		recovery = fallback(curSample, why);
+		// From the constant-velocity prior, and from the features' best (too weak) fit: at a
+		// low scan rate the prior misses a turn by tens of degrees.
+		// And straight on: after a turn the prior would turn on.
+		Eigen::Isometry3d straight = Eigen::Isometry3d::Identity();
+		straight.translation() = velocity_.translation();
+		std::vector<Eigen::Isometry3d> starts{velocity_, straight};
+		if (est.inliers.size() >= 6)
+			starts.push_back(T_kf_prev_.inverse() * est.T);
+		recovery = fallback(curSample, starts, why);
 		const auto* step = recovery ? &recovery->T_prev_curr : nullptr;
 		if (step && step->translation().norm() <= maxStep_m_)
 		{
