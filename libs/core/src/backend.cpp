@@ -314,24 +314,57 @@ void Backend::process(KeyframeJob& job)
 		std::vector<std::pair<uint64_t, uint64_t>> accepted;
 		job.kf.scan = job.scan.get();
 		job.kf.raster = job.raster.get();
-		const auto loops = loopDetector_->detect(job.kf, mapManager_->map(), poses_);
+		job.kf.inMapFrame = anchored_;
+		auto loops = loopDetector_->detect(job.kf, mapManager_->map(), poses_);
 		job.kf.scan = nullptr;
 		job.kf.raster = nullptr;
+		if (anchored_ && !caughtUp_)
+		{
+			// Anchored since the last keyframe: the keyframes made before are in the map's
+			// frame now too, and are searched for the earlier sessions once.
+			caughtUp_ = true;
+			const Map& map = mapManager_->map();
+			std::vector<std::pair<mrpt::graphs::TNodeID, mrpt::poses::CPose3D>> before;
+			{
+				std::lock_guard<std::mutex> lk(graphMutex_);
+				for (const auto& [id, pose] : res_.graph.nodes)
+					if (!fixed_.count(id) && id != job.kf.node)
+						before.emplace_back(id, pose);
+			}
+			for (const auto& [id, pose] : before)
+			{
+				const auto it = map.keyframes.find(id);
+				if (it == map.keyframes.end())
+					continue;
+				KeyframeInfo info;
+				info.node = id;
+				info.scanIndex = it->second->scanIndex;
+				info.stamp = it->second->stamp;
+				info.pose = pose;
+				info.data = it->second;
+				info.inMapFrame = true;
+				for (auto& lc : loopDetector_->searchEarlierSessions(info, map, poses_))
+					loops.push_back(lc);
+			}
+		}
 		for (auto lc : loops)
 		{
 			std::lock_guard<std::mutex> lk(graphMutex_);
+			const bool toPrior = fixed_.count(lc.from) || !res_.graph.nodes.count(lc.from);
+			if (toPrior)
+				++res_.loopsToPriorMap;
 			if (!res_.graph.nodes.count(lc.from))
 			{
 				// A keyframe of an earlier session (--map-in). Once this session is anchored in
 				// that map the loop joins them: the keyframe enters the graph, fixed.
-				++res_.loopsToPriorMap;
 				if (!anchored_ || !poses_.prior || !poses_.prior->count(lc.from))
 					continue;
 				addFixedNode(lc.from, poses_.prior->at(lc.from));
-				++res_.priorMapLoopEdges;
 			}
 			if (!res_.graph.nodes.count(lc.to))
 				continue;
+			if (toPrior)
+				++res_.priorMapLoopEdges;
 			if (s_.testCorruptLoops > 0 &&
 			    std::uniform_real_distribution<double>(0, 1)(corruptRng_) < s_.testCorruptLoops)
 			{

@@ -103,6 +103,7 @@ class Backend
 	std::size_t kfSinceOptimization_ = 0;
 	std::atomic<bool> optimizationPending_{false};
 	std::atomic<bool> anchored_{false};
+	bool caughtUp_ = false;  //!< the keyframes before the anchoring were searched
 	std::set<mrpt::graphs::TNodeID> fixed_;
 	std::vector<std::pair<std::size_t, StageTimes>> times_;
 	double cpu_s_ = 0;

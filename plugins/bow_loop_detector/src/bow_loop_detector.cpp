@@ -41,6 +41,11 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
 	canonicalYaw_ = p.getBool("canonical_yaw", canonicalYaw_);
 	directLevels_ = p.getInt("direct_index_levels_up", directLevels_);
+	guidedRadius_m_ = p.getDouble("guided_radius_m", guidedRadius_m_);
+	guidedGate_m_ = p.getDouble("guided_gate_m", guidedGate_m_);
+	guidedGate_deg_ = p.getDouble("guided_gate_deg", guidedGate_deg_);
+	guidedMinInliers_ = p.getInt("guided_min_inliers", guidedMinInliers_);
+	guidedMaxCandidates_ = p.getInt("guided_max_candidates", guidedMaxCandidates_);
 	p.requirePositive(searchRadius_m_, "search_radius_m");
 	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
 	p.requireAtLeast(onlineBranching_, 2, "online_branching");
@@ -59,6 +64,11 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireRange(groundMaxTilt_deg_, 0, 180, "relocalization_max_tilt_deg");
 	p.requirePositive(pointSigma_m_, "point_sigma_m");
 	p.requireRange(directLevels_, 0, 8, "direct_index_levels_up");
+	p.requireAtLeast(guidedRadius_m_, 0, "guided_radius_m");  // 0: off
+	p.requirePositive(guidedGate_m_, "guided_gate_m");
+	p.requireRange(guidedGate_deg_, 0, 180, "guided_gate_deg");
+	p.requireAtLeast(guidedMinInliers_, 3, "guided_min_inliers");
+	p.requireAtLeast(guidedMaxCandidates_, 1, "guided_max_candidates");
 
 	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);
 	vocab_.reset();
@@ -276,6 +286,33 @@ void BowLoopDetector::consider(LoopDecision d, const features::RigidResult& fit,
 	decisions_.push_back(d);
 }
 
+BowLoopDetector::Query BowLoopDetector::queryOf(const Keyframe& k) const
+{
+	Query q;
+	const std::size_t n = k.size();
+	q.desc = descriptorMat(k.descriptors);
+	for (std::size_t i = 0; i < n; i++)
+		q.pts.emplace_back(k.xyz[3 * i], k.xyz[3 * i + 1], k.xyz[3 * i + 2]);
+	if (directLevels_ > 0 && vocab_ && n > 0)
+		q.groups = groupsOf(q.desc);
+	q.groundValid = k.groundValid;
+	q.groundN = Eigen::Vector3d(k.groundN[0], k.groundN[1], k.groundN[2]);
+	q.groundD = k.groundD;
+	return q;
+}
+
+std::vector<LoopConstraint> BowLoopDetector::searchEarlierSessions(const KeyframeInfo& kf,
+                                                                   const Map& map,
+                                                                   const PoseView& poses)
+{
+	if (!kf.data || !kf.inMapFrame || map.sessions < 2 || guidedRadius_m_ <= 0 ||
+	    kf.data->size() == 0)
+		return {};
+	if (auto g = guidedSearch(queryOf(*kf.data), kf, map, poses))
+		return {*g};
+	return {};
+}
+
 std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, const Map& map,
                                                     const PoseView& poses)
 {
@@ -286,13 +323,8 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		    "rasterslam::OrbOdometry)");
 	std::vector<LoopConstraint> out;
 	const std::size_t decisionsBefore = decisions_.size();
-	Query q;
+	const Query q = queryOf(*kf.data);
 	const std::size_t n = kf.data->size();
-	q.desc = descriptorMat(kf.data->descriptors);
-	for (std::size_t i = 0; i < n; i++)
-		q.pts.emplace_back(kf.data->xyz[3 * i], kf.data->xyz[3 * i + 1], kf.data->xyz[3 * i + 2]);
-	if (directLevels_ > 0 && vocab_ && n > 0)
-		q.groups = groupsOf(q.desc);
 
 	if (!retiring_.empty())
 		retire(map.sessions - 1, kf.stamp);
@@ -340,6 +372,13 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		}
 		prevBow_ = b;
 	}
+	// An anchored session also looks for the earlier sessions where it is, unless the BOW
+	// search found one of them.
+	const bool bestEarlier = best && map.localMaps.count(best->localMap) &&
+	                         map.localMaps.at(best->localMap)->session + 1 < map.sessions;
+	if (kf.inMapFrame && map.sessions > 1 && guidedRadius_m_ > 0 && !bestEarlier && n > 0)
+		if (auto g = guidedSearch(q, kf, map, poses))
+			out.push_back(*g);
 	if (best)
 	{
 		decisions_[bestDecision].accepted = true;

@@ -31,6 +31,8 @@ class BowLoopDetector : public LoopDetector
 	void index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors) override;
 	std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map& map,
 	                                   const PoseView& poses) override;
+	std::vector<LoopConstraint> searchEarlierSessions(const KeyframeInfo& kf, const Map& map,
+	                                                  const PoseView& poses) override;
 	RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster, const Map& map,
 	                                const PoseView& poses) override;
 	RelocalizationResult locate(const LocalMap& query, const Map& map, const PoseView& poses,
@@ -58,6 +60,8 @@ class BowLoopDetector : public LoopDetector
 		/** direct_index_levels_up > 0: the vocabulary node of each feature. */
 		std::vector<uint32_t> groups;
 	};
+	/** A keyframe's features and ground plane as a query. */
+	Query queryOf(const Keyframe& k) const;
 	/** The vocabulary node `directLevels_` levels above the leaves of each descriptor row. */
 	std::vector<uint32_t> groupsOf(const cv::Mat& desc) const;
 	int directLevels_ = 0;
@@ -97,6 +101,13 @@ class BowLoopDetector : public LoopDetector
 	void searchByDistance(const Query& q, const KeyframeInfo& kf, const Map& map,
 	                      const PoseView& poses, std::optional<LoopConstraint>& best,
 	                      std::size_t& bestDecision);
+	/** Once the session is anchored in a prior map (kf.inMapFrame): the earlier sessions'
+	 *  local maps within guided_radius_m of the keyframe, matched with the predicted positions
+	 *  as a gate; a fit with guided_min_inliers that agrees with the prediction is a loop. */
+	std::optional<LoopConstraint> guidedSearch(const Query& q, const KeyframeInfo& kf,
+	                                           const Map& map, const PoseView& poses);
+	double guidedRadius_m_ = 10.0, guidedGate_m_ = 2.0, guidedGate_deg_ = 5.0;
+	int guidedMinInliers_ = 12, guidedMaxCandidates_ = 2;
 	enum class Search
 	{
 		Bow,

@@ -117,6 +117,9 @@ struct KeyframeInfo
 	/** The keyframe of the map this one was relocalized against (a graph edge joins them):
 	 *  a session anchored in a prior map, or tracking found again after a loss. */
 	std::optional<uint64_t> locatedAt;
+	/** The pose is in the frame of the map's earlier sessions (this session is anchored in
+	 *  them): a loop detector may search them near it. */
+	bool inMapFrame = false;
 	/** The scan that made the keyframe and its elevation image, while the engine hands the
 	 *  keyframe to the mapping and the loop detector (null otherwise; not to be kept). */
 	const Scan* scan = nullptr;
@@ -245,6 +248,15 @@ class LoopDetector : public Plugin
 	virtual void index(const LocalMap& lm, const std::vector<uint8_t>& imageDescriptors) = 0;
 	virtual std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map& map,
 	                                           const PoseView& poses) = 0;
+	/** Looks for the map's earlier sessions near kf.pose only (kf.inMapFrame): for the
+	 *  keyframes a session made before it was anchored, searched once it is. None by
+	 *  default. */
+	virtual std::vector<LoopConstraint> searchEarlierSessions(const KeyframeInfo& /*kf*/,
+	                                                          const Map& /*map*/,
+	                                                          const PoseView& /*poses*/)
+	{
+		return {};
+	}
 	/** Locates a scan in the map with no pose prior. */
 	virtual RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster,
 	                                        const Map& map, const PoseView& poses) = 0;

@@ -1,0 +1,115 @@
+// Guided search of earlier sessions: once a session is anchored in a prior map, its keyframe
+// poses are in that map's frame, so the earlier sessions' local maps near a keyframe are
+// candidates whatever the place index ranks first, and the matching can be gated by the
+// predicted positions (as the odometry's is). Another sensor sees the same walls at other
+// heights, and few of its features match the map's: the BOW search alone found no loop to
+// the first session in a whole VLP-16 session over an HDL-64E map.
+#include <algorithm>
+
+#include "bow_loop_detector.h"
+
+using namespace rasterslam;
+
+std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, const KeyframeInfo& kf,
+                                                            const Map& map, const PoseView& poses)
+{
+	struct Cand
+	{
+		double dist;
+		uint64_t localMap;
+	};
+	std::vector<Cand> cands;
+	const Eigen::Vector3d here(kf.pose.x(), kf.pose.y(), kf.pose.z());
+	for (const auto& [id, lm] : map.localMaps)
+	{
+		if (lm->session + 1 >= map.sessions)
+			continue;  // this session's: the BOW search's
+		double best = std::numeric_limits<double>::max();
+		for (const auto k : lm->keyframes)
+			if (const auto p = poses(k))
+				best = std::min(best, (Eigen::Vector3d(p->x(), p->y(), p->z()) - here).norm());
+		if (best <= guidedRadius_m_)
+			cands.push_back({best, id});
+	}
+	std::stable_sort(cands.begin(), cands.end(),
+	                 [](const Cand& a, const Cand& b) { return a.dist < b.dist; });
+	if (cands.size() > static_cast<std::size_t>(guidedMaxCandidates_))
+		cands.resize(static_cast<std::size_t>(guidedMaxCandidates_));
+
+	std::optional<LoopConstraint> best;
+	std::size_t bestDecision = 0;
+	for (const auto& c : cands)
+	{
+		const auto data = candidate(map, c.localMap);  // offline: read from the store
+		if (!data)
+			continue;
+		const auto& lm = *data;
+		const auto anchor = poses(lm.anchor());
+		if (!anchor)
+			continue;
+		// Where the query should be in the anchor's frame; features are paired only where
+		// their predicted positions agree within the gate.
+		const Eigen::Isometry3d predicted = toIsometry(*anchor).inverse() * toIsometry(kf.pose);
+		const Eigen::Isometry3f pf = predicted.cast<float>();
+		std::vector<Eigen::Vector3f> qInAnchor, lmPts;
+		qInAnchor.reserve(q.pts.size());
+		for (const auto& p : q.pts)
+			qInAnchor.push_back(pf * p);
+		lmPts.reserve(lm.points());
+		for (std::size_t i = 0; i < lm.points(); i++)
+			lmPts.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
+		features::MatchParams mp = match_;
+		mp.gateRadius_m = static_cast<float>(guidedGate_m_);
+		const cv::Mat cand(static_cast<int>(lm.points()), 32, CV_8U,
+		                   const_cast<uint8_t*>(lm.descriptors.data()));
+		const auto matches = features::matchMutual(q.desc, cand, mp, &qInAnchor, &lmPts);
+		std::vector<Eigen::Vector3f> p, m;
+		for (const auto& mt : matches)
+		{
+			p.push_back(q.pts[static_cast<std::size_t>(mt.a)]);
+			m.push_back(lmPts[static_cast<std::size_t>(mt.b)]);
+		}
+		auto params = ransac_;
+		params.minInliers = guidedMinInliers_;
+		auto fit = features::ransacRigid(p, m, params, static_cast<uint32_t>(kf.node * 37 + lm.id));
+		for (auto& i : fit.inliers)
+			i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
+		LoopDecision d;
+		d.queryStamp = kf.stamp;
+		d.score = q.pts.empty()
+		              ? 0
+		              : static_cast<double>(fit.inliers.size()) / static_cast<double>(q.pts.size());
+		// Height from the ground planes, as a relocalization's: another sensor's features
+		// sit at other heights of the same walls (measured on a VLP-16 session in an HDL-64E
+		// map: up to 0.6 m off in z without this).
+		bool ground = true;
+		if (fit.ok)
+		{
+			double tilt = 0;
+			const auto aligned =
+			    groundAligned(q, lm, nearestKeyframe(lm, fit.T, poses), fit.T, map, poses, &tilt);
+			if (aligned)
+				fit.T = *aligned;
+			else
+				ground = false;
+		}
+		// The registration must agree with the prediction: the gate let only nearby pairs
+		// through, but a fit on a few of them can still slide along a wall.
+		const Eigen::Isometry3d off = predicted.inverse() * fit.T;
+		const double offDeg = Eigen::AngleAxisd(off.linear()).angle() * 180.0 / M_PI;
+		const bool agrees = off.translation().norm() <= guidedGate_m_ && offDeg <= guidedGate_deg_;
+		d.reason = !fit.ok ? "inliers" : (!ground ? "ground" : (agrees ? "guided" : "prior"));
+		consider(d, fit, lm, q, kf, map, poses, fit.ok && ground && agrees, best, bestDecision);
+	}
+	if (best)
+	{
+		decisions_[bestDecision].accepted = true;
+		MRPT_LOG_INFO_FMT(
+		    "guided loop: keyframe %llu (t=%.2f) -> keyframe %llu of an earlier "
+		    "session, local map %llu, %zu inliers",
+		    static_cast<unsigned long long>(best->to), kf.stamp,
+		    static_cast<unsigned long long>(best->from),
+		    static_cast<unsigned long long>(best->localMap), best->inliers);
+	}
+	return best;
+}
