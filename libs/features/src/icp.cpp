@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <nanoflann.hpp>
 #include <unordered_map>
 
@@ -86,47 +87,76 @@ std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>&
 	return out;
 }
 
-IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn,
-                          const std::vector<Eigen::Vector3f>& targetIn,
-                          const Eigen::Isometry3d& initial, const IcpParams& prm)
+struct IcpTarget::Impl
 {
-	IcpResult res;
-	res.T = initial;
-	const auto src = voxelDownsample(sourceIn, prm.voxel_m);
-	const auto dst = voxelDownsample(targetIn, prm.voxel_m);
-	res.sourcePoints = src.size();
-	const int k = std::max(3, prm.normalNeighbours);
-	if (src.size() < 6 || dst.size() < static_cast<std::size_t>(k))
-		return res;
-	const CloudAdaptor adaptor{dst};
-	const KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+	std::vector<Eigen::Vector3f> pts, normals;
+	CloudAdaptor adaptor{pts};
+	std::unique_ptr<KdTree> tree;
+};
 
-	// Target normals: the smallest principal direction of the neighbourhood, when it is flat.
-	std::vector<Eigen::Vector3f> normals(dst.size(), Eigen::Vector3f::Zero());
+IcpTarget::IcpTarget(const std::vector<Eigen::Vector3f>& in, const IcpParams& prm)
+    : impl_(std::make_unique<Impl>())
+{
+	auto& t = *impl_;
+	t.pts = voxelDownsample(in, prm.voxel_m);
+	const int k = std::max(3, prm.normalNeighbours);
+	if (t.pts.size() < static_cast<std::size_t>(k))
+		return;
+	t.tree = std::make_unique<KdTree>(3, t.adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+	// Normals: the smallest principal direction of the neighbourhood, when it is flat.
+	t.normals.assign(t.pts.size(), Eigen::Vector3f::Zero());
 	std::vector<uint32_t> idx(static_cast<std::size_t>(k));
 	std::vector<float> d2(static_cast<std::size_t>(k));
-	for (std::size_t i = 0; i < dst.size(); i++)
+	for (std::size_t i = 0; i < t.pts.size(); i++)
 	{
 		const std::size_t n =
-		    tree.knnSearch(dst[i].data(), static_cast<std::size_t>(k), idx.data(), d2.data());
+		    t.tree->knnSearch(t.pts[i].data(), static_cast<std::size_t>(k), idx.data(), d2.data());
 		if (n < 3)
 			continue;
 		Eigen::Vector3d mean = Eigen::Vector3d::Zero();
 		for (std::size_t j = 0; j < n; j++)
-			mean += dst[idx[j]].cast<double>();
+			mean += t.pts[idx[j]].cast<double>();
 		mean /= static_cast<double>(n);
 		Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
 		for (std::size_t j = 0; j < n; j++)
 		{
-			const Eigen::Vector3d e = dst[idx[j]].cast<double>() - mean;
+			const Eigen::Vector3d e = t.pts[idx[j]].cast<double>() - mean;
 			C += e * e.transpose();
 		}
 		const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
 		const double sum = es.eigenvalues().sum();
 		if (!(sum > 0) || 1.0 - 3.0 * es.eigenvalues()(0) / sum < prm.minPlanarity)
 			continue;
-		normals[i] = es.eigenvectors().col(0).cast<float>();
+		t.normals[i] = es.eigenvectors().col(0).cast<float>();
 	}
+}
+
+IcpTarget::~IcpTarget() = default;
+
+std::size_t IcpTarget::size() const
+{
+	return impl_->tree ? impl_->pts.size() : 0;
+}
+
+IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn,
+                          const std::vector<Eigen::Vector3f>& targetIn,
+                          const Eigen::Isometry3d& initial, const IcpParams& prm)
+{
+	return icpPointToPlane(sourceIn, IcpTarget(targetIn, prm), initial, prm);
+}
+
+IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const IcpTarget& target,
+                          const Eigen::Isometry3d& initial, const IcpParams& prm)
+{
+	IcpResult res;
+	res.T = initial;
+	const auto src = voxelDownsample(sourceIn, prm.voxel_m);
+	res.sourcePoints = src.size();
+	if (src.size() < 6 || target.size() == 0)
+		return res;
+	const auto& dst = target.impl().pts;
+	const auto& normals = target.impl().normals;
+	const KdTree& tree = *target.impl().tree;
 
 	const float maxD2 = static_cast<float>(prm.maxCorrespondence_m * prm.maxCorrespondence_m);
 	using Mat6 = Eigen::Matrix<double, 6, 6>;

@@ -73,6 +73,17 @@ class OrbOdometry : public Odometry
 	features::IcpParams icp_;
 	double fallbackMinOverlap_ = 0.4, fallbackMaxRange_m_ = 60.0, fallbackMinConstraint_ = 0.02;
 	Cloud prevCloud_;  //!< sample of the previous scan (fallback on; empty: none)
+	/** refine: after the features' estimate, ICP of the scan's points on the keyframe's;
+	 *  its rotation (Rotation) or its whole pose (Pose) replaces the estimate's. */
+	enum class Refine
+	{
+		None,
+		Rotation,
+		Pose
+	};
+	Refine refine_ = Refine::None;
+	features::IcpParams refineIcp_;
+	std::unique_ptr<features::IcpTarget> kfTarget_;  //!< the keyframe's points (refine on)
 
 	std::unique_ptr<features::OrbExtractor> orb_;
 	std::unique_ptr<Frame> kf_;
@@ -122,6 +133,9 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	alignGround_ = p.getBool("align_ground", alignGround_);
 	groundMaxCorrection_deg_ = p.getDouble("ground_max_correction_deg", groundMaxCorrection_deg_);
 	fallback_ = p.getChoice("lost_fallback", "icp", {"icp", "none"}) == "icp";
+	const auto refine = p.getChoice("refine", "none", {"none", "rotation", "pose"});
+	refine_ =
+	    refine == "none" ? Refine::None : (refine == "rotation" ? Refine::Rotation : Refine::Pose);
 	fallbackStride_ = p.getInt("fallback_stride", fallbackStride_);
 	icp_ = features::IcpParams();
 	icp_.voxel_m = p.getDouble("fallback_voxel_m", icp_.voxel_m);
@@ -138,6 +152,9 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	p.requireRange(fallbackMinOverlap_, 0, 1, "fallback_min_overlap");
 	p.requirePositive(fallbackMaxRange_m_, "fallback_max_range_m");
 	p.requireRange(fallbackMinConstraint_, 0, 1, "fallback_min_constraint");
+	refineIcp_ = icp_;
+	refineIcp_.voxel_m = p.getDouble("refine_voxel_m", 0.8);
+	p.requireRange(refineIcp_.voxel_m, 0.01, 100, "refine_voxel_m");
 	prevCloud_.clear();
 	// Upper bounds far beyond use (an elevation image has about 250,000 pixels; OpenCV's ORB
 	// defaults to 8 levels): larger values only overflow counts or exhaust memory.
@@ -375,7 +392,10 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		kf_ = std::move(cur);
 		T_kf_prev_.setIdentity();
 		sinceKf_ = 0;
-		prevCloud_ = fallback_ ? sampleOf(scan) : Cloud();
+		prevCloud_ = fallback_ || refine_ != Refine::None ? sampleOf(scan) : Cloud();
+		kfTarget_ = refine_ != Refine::None
+		                ? std::make_unique<features::IcpTarget>(prevCloud_, refineIcp_)
+		                : nullptr;
 		return r;
 	}
 
@@ -412,7 +432,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		r.message = "only " + std::to_string(est.inliers.size()) + " inliers among " +
 		            std::to_string(cur->kps.size()) + " features";
 	// The scan's point sample, kept for the next scan's fallback.
-	Cloud curSample = fallback_ ? sampleOf(scan) : Cloud();
+	Cloud curSample = fallback_ || refine_ != Refine::None ? sampleOf(scan) : Cloud();
 	bool recovered = false;
 	std::optional<Recovery> recovery;
 	if (!ok && fallback_)
@@ -447,6 +467,19 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	if (ok)
 	{
 		T_kf_curr = alignGround_ && !bridged ? alignGround(est.T, *kf_, *cur) : est.T;
+		if (refine_ != Refine::None && !recovered && !bridged && kfTarget_)
+		{
+			const auto icp =
+			    features::icpPointToPlane(curSample, *kfTarget_, T_kf_curr, refineIcp_);
+			if (icp.converged && icp.overlap >= fallbackMinOverlap_ &&
+			    icp.constraint >= fallbackMinConstraint_)
+			{
+				if (refine_ == Refine::Rotation)
+					T_kf_curr.linear() = icp.T.linear();
+				else
+					T_kf_curr = icp.T;
+			}
+		}
 		r.status = TrackingStatus::Ok;
 		r.inliers = est.inliers.size();
 		if (recovered)
@@ -491,6 +524,8 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	}
 	if (r.keyframe)
 	{
+		if (refine_ != Refine::None)
+			kfTarget_ = std::make_unique<features::IcpTarget>(prevCloud_, refineIcp_);
 		r.keyframeData = keyframeOf(*cur);
 		kf_ = std::move(cur);
 		prev_.reset();

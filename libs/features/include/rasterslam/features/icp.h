@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 namespace rasterslam::features
@@ -41,6 +42,23 @@ struct IcpResult
 	double constraint = 0;
 };
 
+/** The target of an alignment, prepared once (voxel reduction, k-d tree, normals) so that
+ *  several sources can be aligned on it: the scans tracked against one keyframe. */
+class IcpTarget
+{
+   public:
+	IcpTarget(const std::vector<Eigen::Vector3f>& pts, const IcpParams& params);
+	~IcpTarget();
+	IcpTarget(const IcpTarget&) = delete;
+	IcpTarget& operator=(const IcpTarget&) = delete;
+	std::size_t size() const;
+	struct Impl;
+	const Impl& impl() const { return *impl_; }
+
+   private:
+	std::unique_ptr<Impl> impl_;
+};
+
 /** One point per occupied voxel (the mean of its points). */
 std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>& pts,
                                              double voxel_m);
@@ -48,6 +66,9 @@ std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>&
 /** Aligns `source` on `target` from `initial` (source pose in the target's frame). */
 IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& source,
                           const std::vector<Eigen::Vector3f>& target,
+                          const Eigen::Isometry3d& initial, const IcpParams& params = {});
+/** The same on a prepared target (made with the same params). */
+IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& source, const IcpTarget& target,
                           const Eigen::Isometry3d& initial, const IcpParams& params = {});
 
 }  // namespace rasterslam::features
