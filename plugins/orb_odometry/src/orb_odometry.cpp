@@ -46,7 +46,7 @@ class OrbOdometry : public Odometry
 	Keyframe::Ptr keyframeOf(const Frame& f) const;
 	using Cloud = std::vector<Eigen::Vector3f>;
 	/** Every fallback_stride-th point of the scan within the fallback's range. */
-	Cloud sampleOf(const Scan& scan) const;
+	void sampleInto(const Scan& scan, Cloud& out) const;
 	struct Recovery
 	{
 		Eigen::Isometry3d T_prev_curr;
@@ -73,6 +73,7 @@ class OrbOdometry : public Odometry
 	features::IcpParams icp_;
 	double fallbackMinOverlap_ = 0.4, fallbackMaxRange_m_ = 60.0, fallbackMinConstraint_ = 0.02;
 	Cloud prevCloud_;  //!< sample of the previous scan (fallback on; empty: none)
+	Cloud sample_;     //!< this scan's (a buffer kept between scans)
 	/** refine: after the features' estimate, ICP of the scan's points on the keyframe's;
 	 *  its rotation (Rotation) or its whole pose (Pose) replaces the estimate's. */
 	enum class Refine
@@ -301,10 +302,12 @@ Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const
 	return k;
 }
 
-OrbOdometry::Cloud OrbOdometry::sampleOf(const Scan& scan) const
+void OrbOdometry::sampleInto(const Scan& scan, Cloud& c) const
 {
-	Cloud c;
-	c.reserve(scan.points.size() / static_cast<std::size_t>(fallbackStride_) + 1);
+	// Filled in place: the two buffers (this scan's, the previous one's) keep their capacity,
+	// so a run allocates them once instead of a block of a new size every scan (which the
+	// heap does not give back).
+	c.clear();
 	const double r2max = fallbackMaxRange_m_ * fallbackMaxRange_m_;
 	for (std::size_t i = 0; i < scan.points.size(); i += static_cast<std::size_t>(fallbackStride_))
 	{
@@ -313,7 +316,6 @@ OrbOdometry::Cloud OrbOdometry::sampleOf(const Scan& scan) const
 		if (r2 >= 1.0 && r2 <= r2max)  // false for NaN
 			c.emplace_back(q.x, q.y, q.z);
 	}
-	return c;
 }
 
 std::optional<OrbOdometry::Recovery> OrbOdometry::fallback(
@@ -392,7 +394,8 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		kf_ = std::move(cur);
 		T_kf_prev_.setIdentity();
 		sinceKf_ = 0;
-		prevCloud_ = fallback_ || refine_ != Refine::None ? sampleOf(scan) : Cloud();
+		if (fallback_ || refine_ != Refine::None)
+			sampleInto(scan, prevCloud_);
 		kfTarget_ = refine_ != Refine::None
 		                ? std::make_unique<features::IcpTarget>(prevCloud_, refineIcp_)
 		                : nullptr;
@@ -432,7 +435,10 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		r.message = "only " + std::to_string(est.inliers.size()) + " inliers among " +
 		            std::to_string(cur->kps.size()) + " features";
 	// The scan's point sample, kept for the next scan's fallback.
-	Cloud curSample = fallback_ || refine_ != Refine::None ? sampleOf(scan) : Cloud();
+	Cloud& curSample = sample_;
+	curSample.clear();
+	if (fallback_ || refine_ != Refine::None)
+		sampleInto(scan, curSample);
 	bool recovered = false;
 	std::optional<Recovery> recovery;
 	if (!ok && fallback_)
@@ -513,7 +519,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	const bool usable = static_cast<int>(cur->kps.size()) >= ransac_.minInliers;
 	r.keyframe = usable && ((sinceKf_ >= kfMinFrames_ && shared) || sinceKf_ >= kfMaxFrames_ ||
 	                        !ok || bridged);
-	prevCloud_ = std::move(curSample);
+	std::swap(prevCloud_, sample_);
 	if (!usable)
 	{
 		// Keep tracking against the keyframe; the prior stands in for this frame, and the
