@@ -487,3 +487,45 @@ TEST(OrbOdometry, TwoHertzDriveTrackedThroughItsTurns)
 		EXPECT_LT(yawErr, 2.0);
 	}
 }
+
+TEST(GicpBaseline, ReportsLostWhereItIsWrong)
+{
+	// The GICP baseline on the first 40 scans of the 2 Hz town drive: from a standing start its
+	// prior (the last motion) is none, and GICP stays put where the car moved 4 m; the fitness
+	// stays low (most matched points are ground). Judged by overlap and constraint it reports
+	// each such scan lost. Measured on the 150-scan drive: 43 steps more than 1 m off, all 43
+	// reported lost, and one more (44 lost).
+	auto sc = sim::loadScenario(test::sourcePath("rawlogs/town-loop.yaml"));
+	sc.rate_hz = 2;
+	sc.scans = 40;
+	const auto simu = sim::Simulator::fromScenario(sc);
+	auto& loader = PluginLoader::instance();
+	loader.load();
+	auto gicp = loader.create<Odometry>("rasterslam::GicpOdometry");
+	ASSERT_TRUE(gicp);
+	gicp->initialize(mrpt::containers::yaml::Map());
+	std::size_t wrong = 0, wrongLost = 0, lost = 0;
+	mrpt::poses::CPose3D prevGt;
+	for (std::size_t k = 0; k < sc.scans; k++)
+	{
+		const Scan s = simu.scan(k);
+		const auto r = gicp->process(s, nullptr);
+		if (k > 0)
+		{
+			const auto truth = *s.groundTruth - prevGt;
+			const double err = (r.T_prev_curr.asVectorVal() - truth.asVectorVal()).head<3>().norm();
+			const bool isLost = r.status == TrackingStatus::Lost;
+			lost += isLost;
+			if (err > 1.0)
+			{
+				++wrong;
+				wrongLost += isLost;
+				EXPECT_TRUE(isLost) << "scan " << k << ": " << err << " m off, reported ok";
+			}
+		}
+		prevGt = *s.groundTruth;
+	}
+	EXPECT_GE(wrong, 5u);  // the case this is about happens here
+	EXPECT_EQ(wrongLost, wrong);
+	EXPECT_LE(lost, wrong + 2);  // and good steps are not called lost
+}

@@ -138,6 +138,51 @@ std::size_t IcpTarget::size() const
 	return impl_->tree ? impl_->pts.size() : 0;
 }
 
+namespace
+{
+/** Overlap and normal matrix of the (voxelized) source at res.T on the target. */
+void assess(const std::vector<Eigen::Vector3f>& src, const IcpTarget& target, const IcpParams& prm,
+            IcpResult& res)
+{
+	using Mat6 = Eigen::Matrix<double, 6, 6>;
+	using Vec6 = Eigen::Matrix<double, 6, 1>;
+	res.sourcePoints = src.size();
+	res.matched = 0;
+	res.H.setZero();
+	res.overlap = res.constraint = 0;
+	if (src.empty() || target.size() == 0)
+		return;
+	const auto& normals = target.impl().normals;
+	const KdTree& tree = *target.impl().tree;
+	const float in2 = static_cast<float>(prm.inlier_m * prm.inlier_m);
+	Mat6 Hs = Mat6::Zero();
+	uint32_t nn = 0;
+	float nd2 = 0;
+	for (const auto& p : src)
+	{
+		const Eigen::Vector3d q = res.T * p.cast<double>();
+		const Eigen::Vector3f qf = q.cast<float>();
+		if (tree.knnSearch(qf.data(), 1, &nn, &nd2) != 1 || nd2 > in2)
+			continue;
+		++res.matched;
+		const Eigen::Vector3f& nf = normals[nn];
+		if (nf.squaredNorm() < 0.5f)
+			continue;
+		const Eigen::Vector3d n = nf.cast<double>();
+		Vec6 J;
+		J.head<3>() = n;
+		J.tail<3>() = q.cross(n);
+		res.H += J * J.transpose();
+		J.tail<3>() /= prm.lever_m;
+		Hs += J * J.transpose();
+	}
+	res.overlap = static_cast<double>(res.matched) / static_cast<double>(src.size());
+	if (res.matched > 0)
+		res.constraint = Eigen::SelfAdjointEigenSolver<Mat6>(Hs).eigenvalues().minCoeff() /
+		                 static_cast<double>(res.matched);
+}
+}  // namespace
+
 IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn,
                           const std::vector<Eigen::Vector3f>& targetIn,
                           const Eigen::Isometry3d& initial, const IcpParams& prm)
@@ -218,31 +263,16 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 	// Orthonormal, whatever rounding did.
 	res.T.linear() = Eigen::Quaterniond(res.T.linear()).normalized().toRotationMatrix();
 
-	// How well the result is pinned down: overlap and the normal matrix at the solution.
-	const float in2 = static_cast<float>(prm.inlier_m * prm.inlier_m);
-	Mat6 Hs = Mat6::Zero();
-	for (const auto& p : src)
-	{
-		const Eigen::Vector3d q = res.T * p.cast<double>();
-		const Eigen::Vector3f qf = q.cast<float>();
-		if (tree.knnSearch(qf.data(), 1, &nn, &nd2) != 1 || nd2 > in2)
-			continue;
-		++res.matched;
-		const Eigen::Vector3f& nf = normals[nn];
-		if (nf.squaredNorm() < 0.5f)
-			continue;
-		const Eigen::Vector3d n = nf.cast<double>();
-		Vec6 J;
-		J.head<3>() = n;
-		J.tail<3>() = q.cross(n);
-		res.H += J * J.transpose();
-		J.tail<3>() /= prm.lever_m;
-		Hs += J * J.transpose();
-	}
-	res.overlap = static_cast<double>(res.matched) / static_cast<double>(src.size());
-	if (res.matched > 0)
-		res.constraint = Eigen::SelfAdjointEigenSolver<Mat6>(Hs).eigenvalues().minCoeff() /
-		                 static_cast<double>(res.matched);
+	assess(src, target, prm, res);
+	return res;
+}
+
+IcpResult assessAlignment(const std::vector<Eigen::Vector3f>& source, const IcpTarget& target,
+                          const Eigen::Isometry3d& T, const IcpParams& params)
+{
+	IcpResult res;
+	res.T = T;
+	assess(voxelDownsample(source, params.voxel_m), target, params, res);
 	return res;
 }
 

@@ -10,6 +10,7 @@
 #include <mrpt/math/CMatrixFixed.h>
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/features/icp.h>
 #include <rasterslam/map/registration.h>
 
 #include <chrono>
@@ -44,6 +45,12 @@ class GicpOdometry : public Odometry
 	double maxCorrespondence_m_ = 1.0, transformationEpsilon_ = 5e-4;
 	int kCorrespondences_ = 20, maxIterations_ = 50, minPoints_ = 100, keyframeEvery_ = 1;
 	double maxFitness_m2_ = 0.5;
+	/** The result is also judged as the ORB odometry's fallback judges its ICP: the share of
+	 *  the scan's points within 0.3 m of the previous scan's planes, and the smallest
+	 *  eigenvalue per point of the point-to-plane normal matrix (0: some motion is free). */
+	double minOverlap_ = 0.4, minConstraint_ = 0.02;
+	features::IcpParams judge_;
+	std::unique_ptr<features::IcpTarget> previousTarget_;  //!< previous_, prepared
 	double infoTranslation_ = 1e4, infoRotation_ = 1e5;
 	bool constantVelocity_ = true;
 	// state
@@ -74,6 +81,8 @@ void GicpOdometry::initializeImpl(ParamReader& p)
 	transformationEpsilon_ = p.getDouble("transformation_epsilon", transformationEpsilon_);
 	minPoints_ = p.getInt("min_points", minPoints_);
 	maxFitness_m2_ = p.getDouble("max_fitness_m2", maxFitness_m2_);
+	minOverlap_ = p.getDouble("min_overlap", minOverlap_);
+	minConstraint_ = p.getDouble("min_constraint", minConstraint_);
 	keyframeEvery_ = p.getInt("keyframe_every", keyframeEvery_);
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
 	infoTranslation_ = p.getDouble("information_translation", infoTranslation_);
@@ -89,13 +98,30 @@ void GicpOdometry::initializeImpl(ParamReader& p)
 	p.requirePositive(minPoints_, "min_points");
 	p.requireAtLeast(transformationEpsilon_, 0, "transformation_epsilon");
 	p.requirePositive(maxFitness_m2_, "max_fitness_m2");
+	p.requireRange(minOverlap_, 0, 1, "min_overlap");
+	p.requireRange(minConstraint_, 0, 1, "min_constraint");
+	judge_ = features::IcpParams();
+	judge_.voxel_m = voxel_m_;
 	p.requirePositive(infoTranslation_, "information_translation");
 	p.requirePositive(infoRotation_, "information_rotation");
 	previous_.reset();
 	previousCov_.reset();
+	previousTarget_.reset();
 	velocity_.setIdentity();
 	sinceKeyframe_ = 0;
 }
+
+namespace
+{
+std::vector<Eigen::Vector3f> points(const pcl::PointCloud<pcl::PointXYZ>& c)
+{
+	std::vector<Eigen::Vector3f> v;
+	v.reserve(c.size());
+	for (const auto& p : c.points)
+		v.emplace_back(p.x, p.y, p.z);
+	return v;
+}
+}  // namespace
 
 GicpOdometry::Cloud::Ptr GicpOdometry::preprocess(const Scan& scan) const
 {
@@ -132,6 +158,7 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 		r.keyframe = true;
 		previous_ = cloud;
 		previousCov_.reset();
+		previousTarget_ = std::make_unique<features::IcpTarget>(points(*cloud), judge_);
 		sinceKeyframe_ = 0;
 		return r;
 	}
@@ -173,9 +200,24 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 		}
 		else
 		{
-			T = gicp.getFinalTransformation();
-			r.status = TrackingStatus::Ok;
-			r.inliers = aligned.size();
+			// Judged on its points: a low fitness says little when most matched points are
+			// ground (a 2 Hz drive's GICP stood still where the car moved 4 m, fitness low).
+			const auto judged = features::assessAlignment(
+			    points(*cloud), *previousTarget_,
+			    Eigen::Isometry3d(gicp.getFinalTransformation().cast<double>()), judge_);
+			if (judged.overlap < minOverlap_ || judged.constraint < minConstraint_)
+			{
+				r.status = TrackingStatus::Lost;
+				r.message = "overlap " + std::to_string(judged.overlap) + ", constraint " +
+				            std::to_string(judged.constraint) +
+				            " (min_overlap, min_constraint): not pinned down";
+			}
+			else
+			{
+				T = gicp.getFinalTransformation();
+				r.status = TrackingStatus::Ok;
+				r.inliers = aligned.size();
+			}
 		}
 	}
 	// GICP aligns the current scan (source) onto the previous one (target): that transform is
@@ -192,6 +234,7 @@ OdometryResult GicpOdometry::process(const Scan& scan, const RasterFrame* /*rast
 		r.information *= 1e-3;  // a guess: trust it little
 	previous_ = cloud;
 	previousCov_ = nextCov;
+	previousTarget_ = std::make_unique<features::IcpTarget>(points(*cloud), judge_);
 	if (++sinceKeyframe_ >= keyframeEvery_)
 	{
 		r.keyframe = true;

@@ -71,4 +71,9 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& source,
 IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& source, const IcpTarget& target,
                           const Eigen::Isometry3d& initial, const IcpParams& params = {});
 
+/** How well `source` at pose T lies on `target` (overlap, normal matrix, constraint), for an
+ *  alignment made elsewhere (another registration's result); `converged` stays false. */
+IcpResult assessAlignment(const std::vector<Eigen::Vector3f>& source, const IcpTarget& target,
+                          const Eigen::Isometry3d& T, const IcpParams& params = {});
+
 }  // namespace rasterslam::features
