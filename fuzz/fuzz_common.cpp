@@ -104,25 +104,23 @@ void registerProjectClasses()
 // and leaks are still found; a mismatch of new and free is not).
 namespace
 {
+/** Megabytes from the environment variable `name` (unset or empty: `def`), in bytes. */
+std::size_t megabytesFromEnv(const char* name, unsigned long long def)
+{
+	const char* env = std::getenv(name);
+	const unsigned long long mb = env && *env ? std::strtoull(env, nullptr, 10) : def;
+	return static_cast<std::size_t>(mb) << 20;
+}
+
 std::size_t maxAllocation()
 {
-	static const std::size_t cap = []
-	{
-		const char* env = std::getenv("RASTERSLAM_FUZZ_MAX_ALLOC_MB");
-		const unsigned long long mb = env && *env ? std::strtoull(env, nullptr, 10) : 256;
-		return static_cast<std::size_t>(mb) << 20;
-	}();
+	static const std::size_t cap = megabytesFromEnv("RASTERSLAM_FUZZ_MAX_ALLOC_MB", 256);
 	return cap;
 }
 
 std::size_t maxTotal()
 {
-	static const std::size_t cap = []
-	{
-		const char* env = std::getenv("RASTERSLAM_FUZZ_MAX_TOTAL_MB");
-		const unsigned long long mb = env && *env ? std::strtoull(env, nullptr, 10) : 768;
-		return static_cast<std::size_t>(mb) << 20;
-	}();
+	static const std::size_t cap = megabytesFromEnv("RASTERSLAM_FUZZ_MAX_TOTAL_MB", 768);
 	return cap;
 }
 

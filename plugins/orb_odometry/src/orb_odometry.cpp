@@ -328,9 +328,10 @@ std::optional<OrbOdometry::Recovery> OrbOdometry::fallback(
 	}
 	std::optional<features::IcpResult> best;
 	int iterations = 0;
+	const features::IcpTarget target(prevCloud_, icp_);  // once for every start
 	for (const auto& start : starts)
 	{
-		auto icp = features::icpPointToPlane(cur, prevCloud_, start, icp_);
+		auto icp = features::icpPointToPlane(cur, target, start, icp_);
 		if (icp.sourcePoints < 100)
 		{
 			why = "too few points (" + std::to_string(icp.sourcePoints) + ")";
