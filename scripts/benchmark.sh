@@ -3,11 +3,22 @@
 # each: ms per scan (median and 95th percentile of the whole path, and the median of every
 # stage), peak memory, and accuracy (ATE; KITTI-devkit relative translation and rotation
 # errors). Inputs: the KITTI sample (../shared/data/kitti00-0000-0100, against the
-# SemanticKITTI and the official poses, 10..80 m segments) and a simulated town drive.
+# SemanticKITTI and the official poses, 10..80 m segments) and the two shipped simulated
+# drives (rawlogs/town-loop.yaml, HDL-64E; rawlogs/town-vlp16.yaml, VLP-16).
+#
+# KISS-ICP runs beside them on every input, on the same core, scored by the same evaluator:
+# it is built from the pinned sources of ../shared/anchors/kiss-icp into KISS_DIR (outside
+# this tree; never part of the project's build), the rawlogs are written out as KITTI .bin
+# scans for it by the kit's rawlog2bin, and the ratios of the first config to KISS-ICP are
+# printed. Its ms per scan include reading the .bin scans, as ours include reading the rawlog.
+# A last table puts the reading alone side by side: .bin files (kiss_runner --read-only),
+# the plain rawlog (what kitti2rawlog and rasterslam-sim write by default) and a gzip one.
 #
 # usage: scripts/benchmark.sh [CONFIG.yaml ...]
 #   default configs: share/rasterslam/config/tracking.yaml (the paper's tracking) and
-#   share/rasterslam/config/gicp-baseline.yaml.  Env: BUILD (build dir), DATA, SIM_SCANS.
+#   share/rasterslam/config/gicp-baseline.yaml.  Env: BUILD (build dir), DATA, SIM_SCANS
+#   (scans of the HDL-64E town drive, default 300), KISS=0 (leave KISS-ICP out), KISS_DIR
+#   (default ~/.cache/rasterslam-bench/kiss-icp), ANCHORS (default ../shared/anchors).
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 BUILD="${BUILD:-$here/build}"
@@ -15,11 +26,30 @@ DATA="${DATA:-$here/../shared/data/kitti00-0000-0100}"
 WORK="${WORK:-$BUILD/bench}"
 SIM_SCANS="${SIM_SCANS:-300}"
 bin="$BUILD/bin"
+ANCHORS="${ANCHORS:-$here/../shared/anchors}"
+KISS_DIR="${KISS_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/rasterslam-bench/kiss-icp}"
 # One core, as the goals are stated: OpenCV would otherwise spread some work over both.
 PIN=""
 command -v taskset >/dev/null 2>&1 && PIN="taskset -c 0"
 [ $# -gt 0 ] || set -- "$here/share/rasterslam/config/tracking.yaml" "$here/share/rasterslam/config/gicp-baseline.yaml"
 mkdir -p "$WORK"
+
+# --- KISS-ICP, built outside the project's tree --------------------------------------------
+kiss=""
+if [ "${KISS:-1}" != 0 ]; then
+  case "$(mkdir -p "$KISS_DIR" && cd "$KISS_DIR" && pwd)/" in
+    "$here"/*) echo "benchmark: KISS_DIR=$KISS_DIR is inside the project's tree; choose another" >&2; exit 2 ;;
+  esac
+  if [ -x "$KISS_DIR/kiss_runner" ] && [ -x "$KISS_DIR/rawlog2bin" ]; then
+    kiss="$KISS_DIR"
+  elif [ -x "$ANCHORS/kiss-icp/build.sh" ] || [ -f "$ANCHORS/kiss-icp/build.sh" ]; then
+    echo "benchmark: building KISS-ICP from $ANCHORS/kiss-icp into $KISS_DIR ..." >&2
+    if sh "$ANCHORS/kiss-icp/build.sh" "$KISS_DIR" >&2; then kiss="$KISS_DIR"
+    else echo "benchmark: the KISS-ICP build failed: KISS-ICP left out" >&2; fi
+  else
+    echo "benchmark: $ANCHORS/kiss-icp not found: KISS-ICP left out" >&2
+  fi
+fi
 
 # A value of a rasterslam-eval --json object by its jq path: json "$j" .ate_rmse_m (empty for null).
 json() { jq -r "$2 // empty" <<<"$1"; }
@@ -43,6 +73,29 @@ row() {  # row NAME OUTDIR JSON1 JSON2
     "${4:+$(printf '%.3f' "$(json "$4" .rel_trans_pct)")}" "${4:+$(printf '%.3f' "$(json "$4" .ate_rmse_m)")}"
 }
 
+kiss_row() {  # kiss_row OUTDIR JSON1 JSON2: timings.csv is scan,points,read_ms,odometry_ms,total_ms
+  local t="$1/timings.csv" p95
+  p95=$(awk -F, 'NR>1{print $5}' "$t" | sort -g | awk '{a[NR]=$1} END{i=int(NR*0.95+0.999); if(i<1)i=1; print a[i]}')
+  printf '%-16s %7.1f %7.1f | %6.2f %6s %6.2f %6s | %7.0f | %7.3f %9.4f %7.3f | %7s %7s\n' "KISS-ICP" \
+    "$(colmed "$t" 5)" "$p95" "$(colmed "$t" 3)" "-" "$(colmed "$t" 4)" "-" "$(awk '{printf "%.0f", $1/1024}' "$1/peak_kb")" \
+    "$(json "$2" .rel_trans_pct)" "$(json "$2" .rel_rot_deg_per_m)" "$(json "$2" .ate_rmse_m)" \
+    "${3:+$(printf '%.3f' "$(json "$3" .rel_trans_pct)")}" "${3:+$(printf '%.3f' "$(json "$3" .ate_rmse_m)")}"
+}
+
+run_kiss() {  # run_kiss BINDIR OUTDIR [kiss_runner options]: one thread, pinned like ours
+  local velo="$1" out="$2"; shift 2
+  rm -rf "$out"; mkdir -p "$out"
+  $PIN /usr/bin/time -f %M -o "$out/peak_kb" "$kiss/kiss_runner" --velodyne "$velo" --out "$out" --threads 1 "$@" >/dev/null
+}
+
+kiss_ratio() {  # kiss_ratio OURS_OUTDIR OURS_JSON KISS_OUTDIR KISS_JSON NAME
+  local a b
+  a=$(yamlv "$1/run.yaml" ms_per_scan_median); b=$(colmed "$3/timings.csv" 5)
+  awk -v a="$a" -v b="$b" -v ta="$(json "$2" .rel_trans_pct)" -v tb="$(json "$4" .rel_trans_pct)" \
+      -v ra="$(json "$2" .rel_rot_deg_per_m)" -v rb="$(json "$4" .rel_rot_deg_per_m)" -v n="$5" \
+      'BEGIN{printf "%s / KISS-ICP: time %.2f x (goal <= 0.25), RTE %.2f x, RRE %.2f x (goal <= 1)\n", n, a/b, ta/tb, ra/rb}'
+}
+
 rate_note() {  # speed ratio of the first config against the last
   local a b
   a=$(yamlv "$1/run.yaml" ms_per_scan_median); b=$(yamlv "$2/run.yaml" ms_per_scan_median)
@@ -57,16 +110,25 @@ if [ -d "$DATA" ]; then
         --calib "$DATA/calib.txt" --times "$DATA/times.txt" --compress 0 --vertical-correction-deg "$vc" -o "$rawlog" >/dev/null
     echo "KITTI 00 frames 0-100 (101 HDL-64E scans, 84 m; plain rawlog; vertical angle correction $vc deg); relative errors on 10..80 m segments"
     header "vs SemanticKITTI poses" "vs official"
-    outs=(); names=()
+    outs=(); names=(); jsons=()
     for cfg in "$@"; do
       name="$(basename "$cfg" .yaml)"; out="$WORK/kitti-vc$vc-$name"
       $PIN "$bin/rasterslam" run --rawlog "$rawlog" --config "$cfg" --out "$out" --quiet >/dev/null
       sem=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_semantickitti.txt" --calib "$DATA/calib.txt" --est "$out/trajectory.kitti" --segments 10:80:10 --json)
       off=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_official.txt" --calib "$DATA/calib.txt" --est "$out/trajectory.kitti" --segments 10:80:10 --json)
       row "$name" "$out" "$sem" "$off"
-      outs+=("$out"); names+=("$name")
+      outs+=("$out"); names+=("$name"); jsons+=("$sem")
     done
+    if [ -n "$kiss" ]; then
+      kout="$WORK/kitti-vc$vc-kiss"
+      kopt=(); [ "$vc" = 0 ] || kopt=(--kitti-correction)
+      run_kiss "$DATA/velodyne" "$kout" "${kopt[@]}"
+      ksem=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_semantickitti.txt" --calib "$DATA/calib.txt" --est "$kout/trajectory.kitti" --segments 10:80:10 --json)
+      koff=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_official.txt" --calib "$DATA/calib.txt" --est "$kout/trajectory.kitti" --segments 10:80:10 --json)
+      kiss_row "$kout" "$ksem" "$koff"
+    fi
     [ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
+    [ -z "$kiss" ] || kiss_ratio "${outs[0]}" "${jsons[0]}" "$kout" "$ksem" "${names[0]}"
     echo
   done
 else
@@ -74,17 +136,49 @@ else
 fi
 
 # --- Simulation --------------------------------------------------------------------------
-sim="$WORK/town-loop-$SIM_SCANS.rawlog"
-[ -f "$sim" ] || "$bin/rasterslam-sim" --scenario "$here/rawlogs/town-loop.yaml" --scans "$SIM_SCANS" -o "$sim" >/dev/null 2>&1
-echo "Simulated town (rawlogs/town-loop.yaml, $SIM_SCANS HDL-64E scans; gz rawlog); relative errors on 50..200 m segments"
-header "vs simulator ground truth" ""
-outs=(); names=()
-for cfg in "$@"; do
-  name="$(basename "$cfg" .yaml)"; out="$WORK/sim-$name"
-  $PIN "$bin/rasterslam" run --rawlog "$sim" --config "$cfg" --out "$out" --quiet >/dev/null
-  gt=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments 50:200:50 --json)
-  row "$name" "$out" "$gt" ""
-  outs+=("$out"); names+=("$name")
+for scen in town-loop town-vlp16; do
+  if [ "$scen" = town-loop ]; then n="$SIM_SCANS"; sim="$WORK/town-loop-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans"
+  else n=""; sim="$WORK/$scen.rawlog"; what="400 VLP-16 scans"; fi
+  [ -f "$sim" ] || "$bin/rasterslam-sim" --scenario "$here/rawlogs/$scen.yaml" ${n:+--scans "$n"} -o "$sim" >/dev/null 2>&1
+  echo "Simulated drive (rawlogs/$scen.yaml, $what; plain rawlog); relative errors on 50..200 m segments"
+  header "vs simulator ground truth" ""
+  outs=(); names=(); jsons=()
+  for cfg in "$@"; do
+    name="$(basename "$cfg" .yaml)"; out="$WORK/sim-$scen-$name"
+    $PIN "$bin/rasterslam" run --rawlog "$sim" --config "$cfg" --out "$out" --quiet >/dev/null
+    gt=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments 50:200:50 --json)
+    row "$name" "$out" "$gt" ""
+    outs+=("$out"); names+=("$name"); jsons+=("$gt")
+  done
+  if [ -n "$kiss" ]; then
+    velo="$WORK/$scen-bin"
+    [ -f "$velo/times.txt" ] || { rm -rf "$velo"; "$kiss/rawlog2bin" "$sim" "$velo" >/dev/null 2>&1; }
+    kout="$WORK/sim-$scen-kiss"
+    run_kiss "$velo" "$kout"
+    kgt=$("$bin/rasterslam-eval" traj --gt "$velo/groundtruth.kitti" --est "$kout/trajectory.kitti" --segments 50:200:50 --json)
+    kiss_row "$kout" "$kgt" ""
+  fi
+  [ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
+  [ -z "$kiss" ] || kiss_ratio "${outs[0]}" "${jsons[0]}" "$kout" "$kgt" "${names[0]}"
+  echo
 done
-[ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
 echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark)"
+
+# --- Reading alone ---------------------------------------------------------------------------
+# The same 101 KITTI scans from .bin files and from the plain rawlog (what kitti2rawlog and
+# rasterslam-sim write by default) and a gzip one, read into points in one process by
+# rasterslam-bench-read; KISS-ICP's runner reading the .bin files (--read-only) beside it.
+if [ -d "$DATA" ]; then
+  plain="$WORK/kitti00-0000-0100-vc0.rawlog" gz="$WORK/kitti00-0000-0100-gz.rawlog"
+  [ -f "$gz" ] || "$bin/kitti2rawlog" --velodyne "$DATA/velodyne" --poses "$DATA/poses_semantickitti.txt" \
+      --calib "$DATA/calib.txt" --times "$DATA/times.txt" --compress 1 -o "$gz" >/dev/null
+  echo
+  echo "Reading the KITTI sample's 101 scans into points (ms per scan, median of passes 2..5; ratio to the .bin files)"
+  $PIN "$bin/rasterslam-bench-read" --bin "$DATA/velodyne" --rawlog "$plain" --rawlog "$gz" --passes 5 2>/dev/null
+  if [ -n "$kiss" ]; then
+    rm -rf "$WORK/read-bin"; mkdir -p "$WORK/read-bin"
+    $PIN "$kiss/kiss_runner" --velodyne "$DATA/velodyne" --out "$WORK/read-bin" --threads 1 --read-only >/dev/null 2>&1
+    printf 'KISS-ICP reading the same .bin files into its points (kiss_runner --read-only): %.3f ms/scan\n' "$(colmed "$WORK/read-bin/timings.csv" 3)"
+  fi
+  echo "(goal: the default rawlog reads in at most 2 x the time of the .bin files)"
+fi

@@ -60,6 +60,7 @@ const std::vector<Program> kPrograms = {
     {"rasterslam-vocab", {"train", "info", "bench"}},
     {"rasterslam-map-export", {"DIR", "--out"}},
     {"rasterslam-bench-map-store", {"--local-maps", "--points"}},
+    {"rasterslam-bench-read", {"--bin", "--rawlog", "--passes"}},
 };
 }  // namespace
 
@@ -126,6 +127,7 @@ TEST(Cli, UnknownOptionIsAUsageError)
 	    {"rasterslam-sim", "--scenario " + d + "/scenario.yaml -o " + d + "/x.rawlog"},
 	    {"rasterslam-map-export", d + " --out " + d + "/exp"},
 	    {"rasterslam-bench-map-store", "--local-maps 1 --points 1"},
+	    {"rasterslam-bench-read", "--bin " + d},
 	};
 	for (const auto& [prog, args] : cases)
 		expectUsageError(stderrOf(prog, args + " --no-such-option"), prog, "--no-such-option");
@@ -268,4 +270,54 @@ TEST(Cli, BadInputFoundWhileRunningExitsOneNamingTheFile)
 
 	for (const auto* left : {"x.rawlog", "v.bin", "v.bin.tmp", "exp"})
 		EXPECT_FALSE(fs::exists(dir / left)) << left;
+}
+
+// kitti2rawlog writes a plain rawlog unless asked for gzip (plain reads ~25x faster), and
+// rasterslam-bench-read reads the same scans, point for point in count, from the .bin files
+// and from both rawlogs.
+TEST(Cli, DefaultRawlogIsPlainAndBenchReadReadsEveryFormat)
+{
+	const test::ScopedTempDir dir("cli");
+	const auto d = dir.path().string();
+	fs::create_directories(dir / "velodyne");
+	for (int s = 0; s < 3; s++)
+	{
+		std::vector<float> rec;
+		for (int k = 0; k < 500 + 100 * s; k++)
+			for (float v : {static_cast<float>(k) * 0.01f + 3.f, -2.f, 0.5f, 0.25f})
+				rec.push_back(v);
+		std::ofstream(dir / "velodyne" / ("00000" + std::to_string(s) + ".bin"), std::ios::binary)
+		    .write(reinterpret_cast<const char*>(rec.data()),
+		           static_cast<std::streamsize>(rec.size() * sizeof(float)));
+	}
+	for (const std::string compress : {"", " --compress 1"})
+	{
+		const auto r =
+		    test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + d + "/velodyne -o " + d +
+		                     (compress.empty() ? "/plain" : "/gz") + ".rawlog" + compress);
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+	}
+	const auto magic = [&](const std::string& name)
+	{
+		unsigned char m[2] = {0, 0};
+		std::ifstream(dir / name, std::ios::binary).read(reinterpret_cast<char*>(m), 2);
+		return m[0] == 0x1f && m[1] == 0x8b;
+	};
+	EXPECT_FALSE(magic("plain.rawlog")) << "the default rawlog is gzip";
+	EXPECT_TRUE(magic("gz.rawlog")) << "--compress 1 did not write gzip";
+
+	const auto r = stdoutOf("rasterslam-bench-read", "--bin " + d + "/velodyne --rawlog " + d +
+	                                                     "/plain.rawlog --rawlog " + d +
+	                                                     "/gz.rawlog --passes 2");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	// One row per input: format, MB, scans, points a scan (mean), ...
+	const std::regex row("(bin|rawlog) +[0-9]+ +([0-9]+) +([0-9]+) ");
+	int rows = 0;
+	for (auto it = std::sregex_iterator(r.output.begin(), r.output.end(), row);
+	     it != std::sregex_iterator(); ++it, ++rows)
+	{
+		EXPECT_EQ((*it)[2].str(), "3") << r.output;
+		EXPECT_EQ((*it)[3].str(), "600") << r.output;  // (500 + 600 + 700) / 3
+	}
+	EXPECT_EQ(rows, 3) << r.output;
 }

@@ -63,7 +63,7 @@ int main(int argc, char** argv)
 	std::string velodyne, sequence, out, posesFile, calibFile, timesFile;
 	std::optional<std::size_t> first, last;
 	bool external = false;
-	int compress = 1;
+	int compress = 0;
 	double verticalCorrection_deg = 0;
 
 	CLI::App app(kDescription, "kitti2rawlog");
@@ -93,7 +93,9 @@ int main(int argc, char** argv)
 	    app.add_flag("--external", external,
 	                 "write a small rawlog that references the .bin files (MRPT external "
 	                 "storage, absolute paths) instead of embedding the points");
-	app.add_option("--compress", compress, "gzip level 0..9 (0: plain file; default 1)")
+	app.add_option("--compress", compress,
+	               "gzip level 0..9 (default 0: a plain file, which reads ~25x faster than gzip; "
+	               "1..9 for smaller files)")
 	    ->check(CLI::Range(0, 9).description(""))
 	    ->type_name("L");
 	const CLI::Validator degrees(

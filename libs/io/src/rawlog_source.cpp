@@ -18,9 +18,12 @@
 #include <rasterslam/io/rawlog_source.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <new>
 #include <optional>
 #include <stdexcept>
@@ -29,15 +32,32 @@ namespace rasterslam::io
 {
 namespace
 {
-/** Reads a rawlog, gzip or plain (zlib reads both), counting the uncompressed bytes consumed
- *  so that a damaged object can be reported by its offset and a clean end told from a cut one.
- *  It also knows its position in the file itself (gzoffset) for the progress, right for files
- *  of any size (gzip's own size field is the size modulo 4 GiB). */
+/** Reads a rawlog, gzip or plain, counting the uncompressed bytes consumed so that a damaged
+ *  object can be reported by its offset and a clean end told from a cut one. A gzip file is
+ *  inflated by zlib, which also knows its position in the file (gzoffset) for the progress,
+ *  right for files of any size (gzip's own size field is the size modulo 4 GiB). A plain file
+ *  is read with stdio, whose large reads go straight into MRPT's buffers: zlib's transparent
+ *  mode would copy every byte once more through its own buffer (measured on the KITTI sample:
+ *  0.52 -> 0.43 ms of reading a 1.9 MB scan). */
 class RawlogStream : public mrpt::io::CStream
 {
    public:
 	explicit RawlogStream(const std::string& path) : path_(path)
 	{
+		unsigned char magic[2] = {0, 0};
+		if (std::FILE* probe = std::fopen(path.c_str(), "rb"))
+		{
+			const bool two = std::fread(magic, 1, 2, probe) == 2;
+			std::fclose(probe);
+			const bool gzip = two && magic[0] == 0x1f && magic[1] == 0x8b;
+			if (!gzip)
+			{
+				plain_ = std::fopen(path.c_str(), "rb");
+				if (plain_)
+					std::setvbuf(plain_, nullptr, _IOFBF, 1 << 16);
+				return;
+			}
+		}
 		f_ = ::gzopen(path.c_str(), "rb");
 		if (f_)
 			::gzbuffer(f_, 1 << 18);
@@ -46,12 +66,22 @@ class RawlogStream : public mrpt::io::CStream
 	{
 		if (f_)
 			::gzclose(f_);
+		if (plain_)
+			std::fclose(plain_);
 	}
 	RawlogStream(const RawlogStream&) = delete;
 	RawlogStream& operator=(const RawlogStream&) = delete;
-	bool isOpen() const { return f_ != nullptr; }
+	bool isOpen() const { return f_ != nullptr || plain_ != nullptr; }
 	size_t Read(void* buf, size_t n) override
 	{
+		if (plain_)
+		{
+			const size_t done = std::fread(buf, 1, n, plain_);
+			if (done < n && std::ferror(plain_))
+				throw std::runtime_error("read error: " + path_);
+			count_ += done;
+			return done;
+		}
 		size_t done = 0;
 		while (done < n)
 		{
@@ -86,6 +116,8 @@ class RawlogStream : public mrpt::io::CStream
 	/** Bytes of the file consumed (compressed, for gzip). */
 	uint64_t fileOffset() const
 	{
+		if (plain_)
+			return count_;
 		const auto o = ::gzoffset(f_);
 		return o > 0 ? static_cast<uint64_t>(o) : 0;
 	}
@@ -93,6 +125,7 @@ class RawlogStream : public mrpt::io::CStream
    private:
 	std::string path_;
 	gzFile f_ = nullptr;
+	std::FILE* plain_ = nullptr;
 	uint64_t count_ = 0;
 };
 
@@ -124,6 +157,54 @@ std::vector<double> defaultElevations(int rows)
 		e[i] = lo + (hi - lo) * i / (rows - 1);
 	return e;
 }
+
+/** Points of four parallel arrays (x, y, z, intensity or none), read as one sequence: lets
+ *  std::vector::assign build each point in place. */
+struct ZipPoints
+{
+	using iterator_category = std::random_access_iterator_tag;
+	using value_type = PointXYZI;
+	using difference_type = std::ptrdiff_t;
+	using pointer = const PointXYZI*;
+	using reference = PointXYZI;
+	const float *x, *y, *z, *i;
+	std::size_t k;
+	PointXYZI operator*() const { return {x[k], y[k], z[k], i ? i[k] : 0.f}; }
+	ZipPoints& operator++()
+	{
+		++k;
+		return *this;
+	}
+	ZipPoints& operator--()
+	{
+		--k;
+		return *this;
+	}
+	ZipPoints operator++(int)
+	{
+		auto old = *this;
+		++k;
+		return old;
+	}
+	ZipPoints& operator+=(difference_type d)
+	{
+		k = static_cast<std::size_t>(static_cast<difference_type>(k) + d);
+		return *this;
+	}
+	ZipPoints operator+(difference_type d) const
+	{
+		auto r = *this;
+		return r += d;
+	}
+	difference_type operator-(const ZipPoints& o) const
+	{
+		return static_cast<difference_type>(k) - static_cast<difference_type>(o.k);
+	}
+	PointXYZI operator[](difference_type d) const { return *(*this + d); }
+	bool operator==(const ZipPoints& o) const { return k == o.k; }
+	bool operator!=(const ZipPoints& o) const { return k != o.k; }
+	bool operator<(const ZipPoints& o) const { return k < o.k; }
+};
 
 void appendTransformed(std::vector<PointXYZI>& out, const mrpt::poses::CPose3D& sensorPose, float x,
                        float y, float z, float i)
@@ -164,14 +245,29 @@ bool observationToPoints(const mrpt::obs::CObservation& o, std::vector<PointXYZI
 		// that a scan a few points larger cannot use (resident memory crept up by some MB
 		// every few hundred scans).
 		out.reserve((xs.size() / 32768 + 1) * 32768);
-		const bool identity = pc->sensorPose == mrpt::poses::CPose3D();
-		for (size_t k = 0; k < xs.size(); k++)
+		const std::size_t n = std::min({xs.size(), ys.size(), zs.size()});
+		const float* is = nullptr;
+		if (xyzi && xyzi->getPointsBufferRef_intensity().size() >= n)
+			is = xyzi->getPointsBufferRef_intensity().data();
+		// One pass over plain arrays, each point built in place (no per-point capacity check,
+		// no zero fill first): half the reading time of a plain rawlog went here otherwise.
+		if (pc->sensorPose == mrpt::poses::CPose3D())
+			out.assign(ZipPoints{xs.data(), ys.data(), zs.data(), is, 0},
+			           ZipPoints{xs.data(), ys.data(), zs.data(), is, n});
+		else
 		{
-			const float in = xyzi ? xyzi->getPointIntensity_fast(k) : 0.f;
-			if (identity)
-				out.push_back({xs[k], ys[k], zs[k], in});
-			else
-				appendTransformed(out, pc->sensorPose, xs[k], ys[k], zs[k], in);
+			out.resize(n);
+			PointXYZI* o = out.data();
+			const auto& R = pc->sensorPose.getRotationMatrix();
+			const double tx = pc->sensorPose.x(), ty = pc->sensorPose.y(), tz = pc->sensorPose.z();
+			for (std::size_t k = 0; k < n; k++)
+			{
+				const double x = xs[k], y = ys[k], z = zs[k];
+				o[k] = {static_cast<float>(R(0, 0) * x + R(0, 1) * y + R(0, 2) * z + tx),
+				        static_cast<float>(R(1, 0) * x + R(1, 1) * y + R(1, 2) * z + ty),
+				        static_cast<float>(R(2, 0) * x + R(2, 1) * y + R(2, 2) * z + tz),
+				        is ? is[k] : 0.f};
+			}
 		}
 		if (pc->isExternallyStored())
 			pc->unload();  // keep memory flat

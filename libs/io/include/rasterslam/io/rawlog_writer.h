@@ -21,7 +21,7 @@ class RawlogWriter
 {
    public:
 	/** compressLevel: 0 writes a plain file, 1..9 a gzip stream (MRPT reads both). */
-	explicit RawlogWriter(const std::string& path, int compressLevel = 1);
+	explicit RawlogWriter(const std::string& path, int compressLevel = 0);
 	~RawlogWriter();
 	RawlogWriter(const RawlogWriter&) = delete;
 	RawlogWriter& operator=(const RawlogWriter&) = delete;
