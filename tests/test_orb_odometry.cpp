@@ -1,7 +1,9 @@
 // The paper's tracking through its plugins (ElevationRasterizer + OrbOdometry): a simulated
 // drive against ground truth, real KITTI frame pairs, the keyframe rule, and scans with
 // nothing to track.
+#include <rasterslam/core/engine.h>
 #include <rasterslam/core/plugin_loader.h>
+#include <rasterslam/eval/trajectory_metrics.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/trajectory_io.h>
 #include <rasterslam/sim/scenario.h>
@@ -9,7 +11,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <iostream>
+#include <map>
 #include <memory>
+#include <string>
 
 #include "test_support.h"
 
@@ -528,4 +533,67 @@ TEST(GicpBaseline, ReportsLostWhereItIsWrong)
 	EXPECT_GE(wrong, 5u);  // the case this is about happens here
 	EXPECT_EQ(wrongLost, wrong);
 	EXPECT_LE(lost, wrong + 2);  // and good steps are not called lost
+}
+
+namespace
+{
+class SimScans : public ScanSource
+{
+   public:
+	SimScans(const sim::Simulator& s, std::size_t n) : sim_(s), n_(n) {}
+	std::optional<Scan> next() override
+	{
+		if (k_ >= n_)
+			return std::nullopt;
+		return sim_.scan(k_++);
+	}
+	std::string name() const override { return "simulator"; }
+
+   private:
+	const sim::Simulator& sim_;
+	std::size_t n_, k_ = 0;
+};
+}  // namespace
+
+TEST(Deskew, SweepsTakenWhileMovingAreTrackedBetterDeskewed)
+{
+	// rawlogs/town-sweep.yaml: the demo town with motion within each sweep (0.8 m and up to
+	// 3.8 deg over a sweep), first 300 scans, the paper's tracking with and without
+	// engine.deskew. Measured: RTE 2.36 % -> 1.36 %, RRE 0.034 -> 0.022 deg/m, ATE 1.31 ->
+	// 0.33 m (50..200 m segments). On KITTI, whose scans are already motion-compensated, the
+	// same de-skewing makes tracking worse (0.34 % -> 1.09 %): it is off by default.
+	auto sc = sim::loadScenario(test::sourcePath("rawlogs/town-sweep.yaml"));
+	ASSERT_TRUE(sc.motion_within_sweep);
+	const std::size_t n = 300;
+	const auto simu = sim::Simulator::fromScenario(sc);
+	eval::Trajectory gt;
+	for (std::size_t k = 0; k < n; k++)
+		gt.push_back({simu.stamp(k), toEigen(simu.sensorPose(k))});
+	std::map<std::string, eval::KittiRelativeResult> rel;
+	std::map<std::string, double> ate;
+	for (const std::string mode : {"none", "constant_velocity"})
+	{
+		auto cfg = mrpt::containers::yaml::FromFile(
+		    test::sourcePath("share/rasterslam/config/tracking.yaml"));
+		cfg["engine"]["deskew"] = mode;
+		Engine e(cfg, "tracking.yaml");
+		SimScans src(simu, n);
+		const auto res = e.run(src, {});
+		ASSERT_TRUE(res.error.empty()) << res.error;
+		ASSERT_EQ(res.poses.size(), n);
+		EXPECT_EQ(res.lost, 0u) << mode;
+		eval::Trajectory est;
+		for (std::size_t k = 0; k < n; k++)
+			est.push_back({simu.stamp(k), toEigen(res.poses[k])});
+		const auto a = eval::associate(gt, est, true);
+		rel[mode] = eval::computeKittiRelative(gt, est, a, {50, 100, 150, 200});
+		ate[mode] = eval::computeAte(gt, est, a).rmse_m;
+		std::cout << "deskew " << mode << ": RTE " << rel[mode].t_err_pct << " %, RRE "
+		          << rel[mode].r_err_deg_per_m << " deg/m, ATE " << ate[mode] << " m\n";
+	}
+	const auto &off = rel["none"], &on = rel["constant_velocity"];
+	EXPECT_LT(on.t_err_pct, 1.5);
+	EXPECT_LT(on.t_err_pct, 0.7 * off.t_err_pct);
+	EXPECT_LT(on.r_err_deg_per_m, 0.8 * off.r_err_deg_per_m);
+	EXPECT_LT(ate["constant_velocity"], 0.5 * ate["none"]);
 }

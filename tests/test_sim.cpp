@@ -7,11 +7,15 @@
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/registerAllClasses.h>
 #include <mrpt/serialization/CArchive.h>
+#include <rasterslam/core/sweep.h>
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/sim/simulator.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iostream>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -575,4 +579,128 @@ TEST(SimRawlog, WrittenAndReadBackByMrpt)
 	}
 	EXPECT_EQ(clouds, n);
 	EXPECT_EQ(poses, n);
+}
+
+// Motion within a sweep: every point of a moving sweep was measured from the pose of its own
+// instant (its azimuth gives the instant), and deskewSweep with the sweep's motion moves it
+// into the sensor frame at the sweep's end, where the scan's ground truth is.
+TEST(SimSweep, EachAzimuthIsMeasuredAtItsInstantAndDeskewingUndoesTheMotion)
+{
+	auto sc = sim::loadScenario(scenarioPath("town-sweep.yaml"));
+	ASSERT_TRUE(sc.motion_within_sweep);
+	sc.noise.range_sigma_m = 0;  // exact ranges: every point is on a surface
+	sc.noise.dropout_prob = 0;
+	sc.point_resolution_m = 0;
+	const auto simu = sim::Simulator::fromScenario(sc);
+	// The scan of the fastest turn among the first 150 (the sweep turns and moves the most).
+	std::size_t k = 1;
+	double fastest = 0;
+	for (std::size_t i = 1; i < 150; i++)
+	{
+		const auto d = simu.sensorPose(i) - simu.sensorPose(i - 1);
+		if (std::abs(d.yaw()) > fastest)
+			fastest = std::abs(d.yaw()), k = i;
+	}
+	ASSERT_GT(fastest / kDeg, 3.0) << "no turn in the first 150 scans";
+	const Scan scan = simu.scan(k);
+	ASSERT_GT(scan.points.size(), 50000u);
+	const double period = 1 / sc.rate_hz, end = simu.stamp(k);
+	const mrpt::poses::CPose3D Pend = simu.sensorPose(k);
+	EXPECT_NEAR((*scan.groundTruth - Pend).norm(), 0.0, 1e-9)
+	    << "the ground truth is the sweep's end";
+	SweepModel model;
+	model.startAzimuth_deg = sc.sweep_start_azimuth_deg;
+	model.clockwise = sc.sweep_clockwise;
+
+	// Each point, placed in the world from the pose of the instant its azimuth gives, lies on
+	// what the world has there: a ray cast from that pose towards it stops at it.
+	std::size_t onSurface = 0, checked = 0;
+	std::vector<Eigen::Vector3d> exact;  // each point in the sensor frame at the sweep's end
+	exact.reserve(scan.points.size());
+	for (std::size_t i = 0; i < scan.points.size(); i++)
+	{
+		const auto& p = scan.points[i];
+		const double f = model.fraction(std::atan2(p.y, p.x));
+		const mrpt::poses::CPose3D P = simu.sensorPoseAt(end - (1 - f) * period);
+		double wx, wy, wz;
+		P.composePoint(p.x, p.y, p.z, wx, wy, wz);
+		double ex, ey, ez;
+		Pend.inverseComposePoint(wx, wy, wz, ex, ey, ez);
+		exact.emplace_back(ex, ey, ez);
+		if (i % 50 == 0)
+		{
+			const Eigen::Vector3d o(P.x(), P.y(), P.z()), w(wx, wy, wz);
+			const double r = (w - o).norm();
+			const auto hit = simu.world().raycast(o, (w - o) / r, r + 5);
+			++checked;
+			onSurface += hit.hit() && std::abs(hit.range - r) < 0.01;
+		}
+	}
+	// Only points right at the sweep's seam (the first and last azimuth) may miss.
+	EXPECT_GT(static_cast<double>(onSurface), 0.99 * static_cast<double>(checked));
+
+	// Un-corrected, the points are off by up to the sweep's whole motion; de-skewed with the
+	// sweep's true motion, by at most the constant-velocity model's error (the route bends).
+	const auto offsets = [&](const std::vector<PointXYZI>& pts)
+	{
+		std::vector<double> d;
+		for (std::size_t i = 0; i < pts.size(); i++)
+			d.push_back((Eigen::Vector3d(pts[i].x, pts[i].y, pts[i].z) - exact[i]).norm());
+		std::sort(d.begin(), d.end());
+		return std::make_pair(d[d.size() / 2], d.back());
+	};
+	const auto [rawMedian, rawMax] = offsets(scan.points);
+	const auto Pstart = simu.sensorPoseAt(end - period);
+	const auto T = Pend - Pstart;
+	std::vector<PointXYZI> fixedPts = scan.points;
+	deskewSweep(
+	    fixedPts,
+	    Eigen::Isometry3d(T.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen()),
+	    model);
+	const auto [fixedMedian, fixedMax] = offsets(fixedPts);
+	EXPECT_GT(rawMedian, 0.2);
+	EXPECT_GT(rawMax, 0.6);
+	EXPECT_LT(fixedMedian, 0.01);
+	EXPECT_LT(fixedMax, 0.08);
+	std::cout << "scan " << k << " (yaw " << fastest / kDeg << " deg a scan): point offsets median "
+	          << rawMedian << " m, max " << rawMax << " m; de-skewed: " << fixedMedian << " m, "
+	          << fixedMax << " m\n";
+}
+
+TEST(SimSweep, FractionFollowsTheSpin)
+{
+	SweepModel cw;  // starts behind, clockwise seen from above
+	EXPECT_NEAR(cw.fraction(kPi), 0.0, 1e-12);
+	EXPECT_NEAR(cw.fraction(kPi / 2), 0.25, 1e-12);   // left after a quarter
+	EXPECT_NEAR(cw.fraction(0), 0.5, 1e-12);          // ahead at half
+	EXPECT_NEAR(cw.fraction(-kPi / 2), 0.75, 1e-12);  // right at three quarters
+	SweepModel ccw;
+	ccw.clockwise = false;
+	ccw.startAzimuth_deg = 0;
+	EXPECT_NEAR(ccw.fraction(kPi / 2), 0.25, 1e-12);
+	EXPECT_NEAR(ccw.fraction(-kPi / 2), 0.75, 1e-12);
+	for (double a = -3; a < 3; a += 0.1)
+	{
+		EXPECT_GE(cw.fraction(a), 0.0);
+		EXPECT_LT(cw.fraction(a), 1.0);
+	}
+	// Points at the sweep's end stay; de-skewing with no motion moves nothing.
+	std::vector<PointXYZI> pts = {{10, 0, 1, 0}, {0, 10, 1, 0}, {-10, 0.01f, 1, 0}};
+	auto same = pts;
+	deskewSweep(same, Eigen::Isometry3d::Identity(), cw);
+	for (std::size_t i = 0; i < pts.size(); i++)
+		EXPECT_FLOAT_EQ(same[i].x, pts[i].x);
+	// A pure forward motion of 1 m over the sweep: the point ahead (half way) moves back by
+	// 0.5 m into the end frame; the one just after the start by almost the whole metre.
+	Eigen::Isometry3d fwd = Eigen::Isometry3d::Identity();
+	fwd.translation() = Eigen::Vector3d(1, 0, 0);
+	auto moved = pts;
+	deskewSweep(moved, fwd, cw);
+	EXPECT_NEAR(moved[0].x, 10 - 0.5, 0.01);
+	EXPECT_NEAR(moved[1].x, -0.75, 0.01);  // left: a quarter of the way
+	EXPECT_NEAR(moved[2].x, -10 - 1.0, 0.01);
+	// A non-finite point stays non-finite (and is not an error).
+	std::vector<PointXYZI> bad = {{std::numeric_limits<float>::quiet_NaN(), 0, 0, 0}};
+	deskewSweep(bad, fwd, cw);
+	EXPECT_TRUE(std::isnan(bad[0].x));
 }

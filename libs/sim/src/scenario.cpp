@@ -191,6 +191,11 @@ Scenario loadScenario(const std::string& path)
 	    {"start_stamp_s", num(sc.start_stamp_s)},
 	    {"threads", intIn(sc.threads, 1, 64)},
 	    {"point_resolution_m", num(sc.point_resolution_m)},
+	    {"motion_within_sweep",
+	     [&](const Node& n, const std::string& k) { sc.motion_within_sweep = r.boolean(n, k); }},
+	    {"sweep_start_azimuth_deg", num(sc.sweep_start_azimuth_deg)},
+	    {"sweep_clockwise",
+	     [&](const Node& n, const std::string& k) { sc.sweep_clockwise = r.boolean(n, k); }},
 	    {"route",
 	     [&](const Node& n, const std::string& k)
 	     {
@@ -236,6 +241,8 @@ void validateScenario(const Scenario& sc)
 	need(sc.threads >= 1, "threads", "expected >= 1");
 	need(sc.point_resolution_m >= 0 && sc.point_resolution_m <= 0.05, "point_resolution_m",
 	     "expected in [0, 0.05]");
+	need(sc.sweep_start_azimuth_deg >= -360 && sc.sweep_start_azimuth_deg <= 360,
+	     "sweep_start_azimuth_deg", "expected in [-360, 360]");
 	need(sc.route.pattern == "block_loop" || sc.route.pattern == "figure_eight" ||
 	         sc.route.pattern == "waypoints",
 	     "route.pattern", "expected block_loop, figure_eight or waypoints");

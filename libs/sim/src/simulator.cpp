@@ -60,6 +60,9 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	o.start_stamp_s = sc.start_stamp_s;
 	o.threads = sc.threads;
 	o.point_resolution_m = sc.point_resolution_m;
+	o.motion_within_sweep = sc.motion_within_sweep;
+	o.sweep.startAzimuth_deg = sc.sweep_start_azimuth_deg;
+	o.sweep.clockwise = sc.sweep_clockwise;
 	return Simulator(std::move(world), LidarModel::byName(sc.lidar),
 	                 Route(wp, sc.route.closed, sc.route.turn_radius_m), o);
 }
@@ -75,17 +78,52 @@ mrpt::poses::CPose3D Simulator::sensorPose(std::size_t k) const
 	return sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
 }
 
+mrpt::poses::CPose3D Simulator::sensorPoseAt(double stampSec) const
+{
+	const double s = opt_.speed_mps * std::max(0.0, stampSec - opt_.start_stamp_s);
+	return sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
+}
+
 Scan Simulator::scan(std::size_t k) const
 {
-	return scanFrom(sensorPose(k), k, stamp(k));
+	if (!opt_.motion_within_sweep)
+		return scanFrom(sensorPose(k), k, stamp(k));
+	// Each azimuth from the pose of its instant: the sweep ends at the scan's stamp.
+	const int nAz = lidar_.azimuthSteps();
+	std::vector<mrpt::poses::CPose3D> columnPose(static_cast<std::size_t>(nAz));
+	const double period = 1.0 / opt_.rate_hz, end = stamp(k);
+	for (int a = 0; a < nAz; a++)
+	{
+		const double f = opt_.sweep.fraction(2 * 3.14159265358979323846 * a / nAz);
+		columnPose[static_cast<std::size_t>(a)] = sensorPoseAt(end - (1 - f) * period);
+	}
+	return cast(sensorPose(k), columnPose, k, end);
 }
 
 Scan Simulator::scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t index,
                          double stampSec) const
 {
-	const Eigen::Matrix3d R = T_world_sensor.getRotationMatrix().asEigen();
-	const Eigen::Vector3d origin(T_world_sensor.x(), T_world_sensor.y(), T_world_sensor.z());
+	return cast(T_world_sensor, {}, index, stampSec);
+}
+
+Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
+                     const std::vector<mrpt::poses::CPose3D>& columnPose, std::size_t index,
+                     double stampSec) const
+{
 	const int nBeams = lidar_.beamCount(), nAz = lidar_.azimuthSteps();
+	// Rotation and origin of each column (one for all without motion within the sweep).
+	std::vector<Eigen::Matrix3d> colR;
+	std::vector<Eigen::Vector3d> colO;
+	const auto addPose = [&](const mrpt::poses::CPose3D& P)
+	{
+		colR.push_back(P.getRotationMatrix().asEigen());
+		colO.emplace_back(P.x(), P.y(), P.z());
+	};
+	if (columnPose.empty())
+		addPose(T_world_sensor);
+	else
+		for (const auto& P : columnPose)
+			addPose(P);
 	std::vector<double> ce(nBeams), se(nBeams), ca(nAz), sa(nAz);
 	for (int b = 0; b < nBeams; b++)
 	{
@@ -120,6 +158,10 @@ Scan Simulator::scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t
 			const int aEnd = std::min(nAz, (c + 1) * kChunk);
 			// Azimuth-major, all beams at one azimuth in turn, as a Velodyne fires them.
 			for (int a = c * kChunk; a < aEnd; a++)
+			{
+				const std::size_t col = colR.size() == 1 ? 0 : static_cast<std::size_t>(a);
+				const Eigen::Matrix3d& R = colR[col];
+				const Eigen::Vector3d& origin = colO[col];
 				for (int b = 0; b < nBeams; b++)
 				{
 					const Eigen::Vector3d ds(ce[b] * ca[a], ce[b] * sa[a], se[b]);
@@ -144,6 +186,7 @@ Scan Simulator::scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t
 					    static_cast<float>(std::round(std::clamp(inten, 0.0, 1.0) * 256) / 256);
 					pts.push_back(p);
 				}
+			}
 		}
 	};
 	const int nThreads = std::min(opt_.threads, nChunks);

@@ -5,6 +5,7 @@
 #include <mrpt/system/COutputLogger.h>
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/scan_source.h>
+#include <rasterslam/core/sweep.h>
 
 #include <atomic>
 #include <chrono>
@@ -201,6 +202,9 @@ class Engine : public mrpt::system::COutputLogger
 	/** --realtime: waits for the scan's time (from the first scan's) and counts it late when
 	 *  past it; false for a scan to drop (RunOptions::dropLate, a whole period late). */
 	bool pace(RunState& s, const Scan& scan, ScanRecord& rec);
+	/** engine.deskew: the scan's points moved into the sensor frame at the sweep's end, with
+	 *  the motion of the last tracked step (its time counts as rasterizing). */
+	void deskew(RunState& s, Scan& scan, ScanRecord& rec);
 	/** The elevation image (null without a rasterizer). */
 	const RasterFrame* rasterize(RunState& s, const Scan& scan, ScanRecord& rec);
 	/** Odometry: the scan's pose from the last keyframe's (as the back end has it now). */
@@ -255,6 +259,9 @@ class Engine : public mrpt::system::COutputLogger
 	double anchorHitSpacing_s_ = 1.0;
 	bool stampOrderError_ = false;
 	double realtimeMaxWait_s_ = 5.0;
+	bool deskew_ = false;
+	SweepModel sweep_;
+	double sweepPeriod_s_ = 0;  //!< 0: the time between scans
 };
 
 /** Resident set size high-water mark of this process, MB (from /proc/self/status). */

@@ -49,6 +49,10 @@ struct Scenario
 	int threads = 2;
 	/** Point coordinates are rounded to multiples of this; 0 keeps them unrounded. */
 	double point_resolution_m = 1.0 / 1024;
+	/** Each azimuth cast from the pose of its instant (see SimulatorOptions). */
+	bool motion_within_sweep = false;
+	double sweep_start_azimuth_deg = 180;
+	bool sweep_clockwise = true;
 	RouteParams route;
 	TownParams town;
 	NoiseParams noise;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <mrpt/poses/CPose3D.h>
+#include <rasterslam/core/sweep.h>
 #include <rasterslam/core/types.h>
 #include <rasterslam/sim/lidar_model.h>
 #include <rasterslam/sim/route.h>
@@ -11,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 namespace rasterslam::sim
 {
@@ -28,12 +30,19 @@ struct SimulatorOptions
 	 *  (under 1 mm, far below the range noise) zeroes the low bits of the float coordinates,
 	 *  which halves the gzip-compressed rawlog and speeds up its compression. */
 	double point_resolution_m = 1.0 / 1024;
+	/** Motion within a sweep: each azimuth is cast from the pose of its own instant, and its
+	 *  points are given in the sensor frame of that instant, as a real driver that does not
+	 *  de-skew gives them. The scan's stamp and ground truth are the sweep's end. Off: every
+	 *  ray leaves from the pose at the stamp (an instantaneous scan). */
+	bool motion_within_sweep = false;
+	/** Where the sweep starts and which way it spins (when motion_within_sweep is on). */
+	SweepModel sweep;
 };
 
-/** Scans are instantaneous: every ray of a sweep leaves from the same pose (no motion
- *  distortion). Intensities are rounded to 1/256, as a sensor's 8-bit value. Random draws are
- * seeded per (seed, scan index, block of azimuths), so a scan depends only on its inputs, not on
- * the thread count or on the scans before it. */
+/** Scans are instantaneous unless SimulatorOptions::motion_within_sweep is set (then every
+ *  azimuth leaves from the pose of its own instant). Intensities are rounded to 1/256, as a
+ * sensor's 8-bit value. Random draws are seeded per (seed, scan index, block of azimuths), so a
+ * scan depends only on its inputs, not on the thread count or on the scans before it. */
 class Simulator
 {
    public:
@@ -47,9 +56,12 @@ class Simulator
 	/** Ground truth of scan k: the sensor frame in the world. */
 	mrpt::poses::CPose3D sensorPose(std::size_t k) const;
 	double stamp(std::size_t k) const;
-	/** A scan from any sensor pose (points in the sensor frame; groundTruth = the pose). */
+	/** A scan from any sensor pose (points in the sensor frame; groundTruth = the pose), every
+	 *  ray from that pose (no motion within the sweep). */
 	Scan scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t index,
 	              double stamp) const;
+	/** The sensor's pose on the route at any time (the route's start before start_stamp_s). */
+	mrpt::poses::CPose3D sensorPoseAt(double stampSec) const;
 
 	const World& world() const { return *world_; }
 	const LidarModel& lidar() const { return lidar_; }
@@ -57,6 +69,11 @@ class Simulator
 	const SimulatorOptions& options() const { return opt_; }
 
    private:
+	/** Casts a sweep; column a (azimuth 2 pi a / steps) leaves from columnPose[a], or from
+	 *  T_world_sensor when columnPose is empty. */
+	Scan cast(const mrpt::poses::CPose3D& T_world_sensor,
+	          const std::vector<mrpt::poses::CPose3D>& columnPose, std::size_t index,
+	          double stampSec) const;
 	std::shared_ptr<const World> world_;
 	LidarModel lidar_;
 	Route route_;
