@@ -597,3 +597,39 @@ TEST(Deskew, SweepsTakenWhileMovingAreTrackedBetterDeskewed)
 	EXPECT_LT(on.r_err_deg_per_m, 0.8 * off.r_err_deg_per_m);
 	EXPECT_LT(ate["constant_velocity"], 0.5 * ate["none"]);
 }
+
+TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)
+{
+	// rawlogs/indoor-handheld.yaml, first 200 scans (24 m, three rooms, turns of up to 13 deg
+	// a scan). Measured on all 450: gicp-indoor.yaml 0 lost, ATE 0.063 m; the paper's tracking
+	// (indoor.yaml) 6 lost, ATE 0.43 m: short of GICP (a README goal not met). This guards
+	// what the configs do: GICP tracks the walk, and the features lose at most a few scans.
+	const auto sc = sim::loadScenario(test::sourcePath("rawlogs/indoor-handheld.yaml"));
+	const std::size_t n = 200;
+	const auto simu = sim::Simulator::fromScenario(sc);
+	eval::Trajectory gt;
+	for (std::size_t k = 0; k < n; k++)
+		gt.push_back({simu.stamp(k), toEigen(simu.sensorPose(k))});
+	for (const std::string name : {"gicp-indoor", "indoor"})
+	{
+		Engine e(mrpt::containers::yaml::FromFile(
+		             test::sourcePath("share/rasterslam/config/" + name + ".yaml")),
+		         name + ".yaml");
+		SimScans src(simu, n);
+		const auto res = e.run(src, {});
+		ASSERT_TRUE(res.error.empty()) << res.error;
+		ASSERT_EQ(res.poses.size(), n);
+		eval::Trajectory est;
+		for (std::size_t k = 0; k < n; k++)
+			est.push_back({simu.stamp(k), toEigen(res.poses[k])});
+		const double ate = eval::computeAte(gt, est, eval::associate(gt, est, true)).rmse_m;
+		std::cout << name << ": " << res.lost << " lost, ATE " << ate << " m\n";
+		if (name == "gicp-indoor")
+		{
+			EXPECT_EQ(res.lost, 0u);
+			EXPECT_LT(ate, 0.1);
+		}
+		else
+			EXPECT_LE(res.lost, 6u);
+	}
+}

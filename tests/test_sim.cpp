@@ -704,3 +704,65 @@ TEST(SimSweep, FractionFollowsTheSpin)
 	deskewSweep(bad, fwd, cw);
 	EXPECT_TRUE(std::isnan(bad[0].x));
 }
+
+// The indoor world and the handheld walk (rawlogs/indoor-handheld.yaml): rooms joined by
+// doors under a ceiling, a walk that fits through the doors and turns about 10 deg a scan.
+TEST(SimIndoor, RoomsDoorsCeilingAndAHandheldWalkThroughThem)
+{
+	const auto sc = sim::loadScenario(scenarioPath("indoor-handheld.yaml"));
+	ASSERT_EQ(sc.world, "indoor");
+	ASSERT_TRUE(sc.handheld);
+	const auto simu = sim::Simulator::fromScenario(sc);
+	const auto& w = simu.world();
+	const auto& in = sc.indoor;
+	// Up from a room's centre: the ceiling; down: the floor; sideways along the lanes: the
+	// door in the wall (the ray passes it) or the outer wall (closed).
+	const Eigen::Vector2d c = in.roomCentre(0, 0);
+	const Eigen::Vector3d o(c.x(), c.y(), 1.0);
+	EXPECT_NEAR(w.raycast(o, Eigen::Vector3d::UnitZ(), 50).range, in.ceiling_m - 1.0, 1e-6);
+	EXPECT_EQ(w.raycast(o, Eigen::Vector3d::UnitZ(), 50).kind, sim::ObjectKind::Ceiling);
+	EXPECT_NEAR(w.raycast(o, -Eigen::Vector3d::UnitZ(), 50).range, 1.0, 1e-6);
+	const double S = in.room_size_m, half = S / 2 - in.wall_m / 2;
+	EXPECT_NEAR(w.raycast(o, -Eigen::Vector3d::UnitX(), 50).range, half, 1e-6);  // outer wall
+	EXPECT_GT(w.raycast(o, Eigen::Vector3d::UnitX(), 50).range, S);              // the door
+	// Just beside the door's middle, the inner wall.
+	const Eigen::Vector3d beside(c.x(), c.y() + in.door_m / 2 + 0.1, 1.0);
+	EXPECT_NEAR(w.raycast(beside, Eigen::Vector3d::UnitX(), 50).range, half, 1e-6);
+
+	// The walk never comes within 0.3 m of a wall or a piece of furniture, doors included.
+	double closest = 1e9, fastestYaw = 0;
+	for (std::size_t k = 0; k < sc.scans; k++)
+	{
+		const auto P = simu.sensorPose(k);
+		const Eigen::Vector3d at(P.x(), P.y(), 1.0);
+		for (int a = 0; a < 36; a++)
+		{
+			const Eigen::Vector3d d(std::cos(a * 10 * kDeg), std::sin(a * 10 * kDeg), 0);
+			closest = std::min(closest, w.raycast(at, d, 50).range);
+		}
+		if (k > 0)
+			fastestYaw =
+			    std::max(fastestYaw,
+			             std::abs(mrpt::math::wrapToPi((P - simu.sensorPose(k - 1)).yaw())) / kDeg);
+	}
+	EXPECT_GT(closest, 0.3);
+	EXPECT_GT(fastestYaw, 10.0);  // the turns in the rooms' centres
+	EXPECT_LT(fastestYaw, 20.0);
+	// The hand's sway tilts the sensor: roll and pitch of a few degrees.
+	double maxTilt = 0;
+	for (std::size_t k = 0; k < 50; k++)
+	{
+		const auto P = simu.sensorPose(k);
+		maxTilt = std::max({maxTilt, std::abs(P.pitch()) / kDeg, std::abs(P.roll()) / kDeg});
+	}
+	EXPECT_GT(maxTilt, 2.0);
+	EXPECT_LT(maxTilt, 4.5);
+	// A VLP-16 indoors: nearly every ray returns (walls all round), most within the room.
+	const Scan s = simu.scan(10);
+	EXPECT_GT(s.points.size(), 25000u);
+	std::vector<double> ranges;
+	for (const auto& p : s.points)
+		ranges.push_back(rangeOf(p));
+	std::sort(ranges.begin(), ranges.end());
+	EXPECT_LT(ranges[ranges.size() / 2], S);
+}

@@ -155,9 +155,10 @@ void assess(const std::vector<Eigen::Vector3f>& src, const IcpTarget& target, co
 	const auto& normals = target.impl().normals;
 	const KdTree& tree = *target.impl().tree;
 	const float in2 = static_cast<float>(prm.inlier_m * prm.inlier_m);
-	Mat6 Hs = Mat6::Zero();
 	uint32_t nn = 0;
 	float nd2 = 0;
+	double r2 = 0;
+	std::size_t withNormal = 0;
 	for (const auto& p : src)
 	{
 		const Eigen::Vector3d q = res.T * p.cast<double>();
@@ -173,9 +174,15 @@ void assess(const std::vector<Eigen::Vector3f>& src, const IcpTarget& target, co
 		J.head<3>() = n;
 		J.tail<3>() = q.cross(n);
 		res.H += J * J.transpose();
-		J.tail<3>() /= prm.lever_m;
-		Hs += J * J.transpose();
+		r2 += q.squaredNorm();
+		++withNormal;
 	}
+	// The same normal matrix with rotation in metres at the lever (H is linear in the scaling).
+	const double lever =
+	    prm.lever_m > 0 ? prm.lever_m : std::sqrt(r2 / std::max<std::size_t>(withNormal, 1));
+	Vec6 D;
+	D << 1, 1, 1, 1 / lever, 1 / lever, 1 / lever;
+	const Mat6 Hs = D.asDiagonal() * res.H * D.asDiagonal();
 	res.overlap = static_cast<double>(res.matched) / static_cast<double>(src.size());
 	if (res.matched > 0)
 		res.constraint = Eigen::SelfAdjointEigenSolver<Mat6>(Hs).eigenvalues().minCoeff() /
@@ -213,6 +220,7 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 		Mat6 A = Mat6::Zero();
 		Vec6 b = Vec6::Zero();
 		std::size_t used = 0;
+		double r2 = 0;
 		for (const auto& p : src)
 		{
 			const Eigen::Vector3d q = res.T * p.cast<double>();
@@ -230,6 +238,7 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 			const double w = std::abs(r) <= prm.huber_m ? 1.0 : prm.huber_m / std::abs(r);
 			A += w * J * J.transpose();
 			b -= w * J * r;
+			r2 += q.squaredNorm();
 			++used;
 		}
 		if (used < 6)
@@ -237,8 +246,10 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 		// Solved along the eigenvectors of the normal matrix (rotation scaled by lever_m):
 		// a direction nothing pins (x, y and yaw over flat ground) gets no update instead of
 		// drifting on noise, and the constraint measure below reports it.
+		const double lever =
+		    prm.lever_m > 0 ? prm.lever_m : std::sqrt(r2 / static_cast<double>(used));
 		Vec6 D;
-		D << 1, 1, 1, 1 / prm.lever_m, 1 / prm.lever_m, 1 / prm.lever_m;
+		D << 1, 1, 1, 1 / lever, 1 / lever, 1 / lever;
 		const Mat6 As = D.asDiagonal() * A * D.asDiagonal();
 		const Eigen::SelfAdjointEigenSolver<Mat6> es(As);
 		const Vec6 bs = D.asDiagonal() * b;

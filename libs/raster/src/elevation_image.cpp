@@ -120,6 +120,7 @@ RasterStats rasterizeOnce(const std::vector<PointXYZI>& pts, const Plane& ground
 	const float gthr = static_cast<float>(p.groundThreshold_m),
 	            below = static_cast<float>(-p.belowGround_m);
 	const float h0 = static_cast<float>(p.sensorHeight_m);
+	const float above = static_cast<float>(p.maxHeight_m);
 	const float cy = std::cos(yaw), sy = std::sin(yaw);
 	out.imageYaw = yaw;
 	for (std::size_t i = 0; i < pts.size(); i++)
@@ -132,7 +133,7 @@ RasterStats rasterizeOnce(const std::vector<PointXYZI>& pts, const Plane& ground
 			continue;
 		}
 		const float h = ground.valid ? ground.height(q) : q.z + h0;
-		if (h < below)
+		if (h < below || (above > 0 && h > above))
 		{
 			++st.outliers;
 			continue;

@@ -114,6 +114,15 @@ std::vector<Eigen::Vector2d> Route::figureEight(const TownParams& town)
 	return {{0, 0}, {P, 0}, {P, P}, {2 * P, P}, {2 * P, 0}, {P, 0}, {P, P}, {0, P}};
 }
 
+std::vector<Eigen::Vector2d> Route::roomTour(const IndoorParams& p)
+{
+	std::vector<Eigen::Vector2d> wp;
+	for (int j = 0; j < p.rooms_y; j++)
+		for (int k = 0; k < p.rooms_x; k++)
+			wp.push_back(p.roomCentre(j % 2 == 0 ? k : p.rooms_x - 1 - k, j));
+	return wp;
+}
+
 PlanarPose Route::at(double s) const
 {
 	if (pieces_.empty())

@@ -151,6 +151,16 @@ Scenario loadScenario(const std::string& path)
 	    {"hills", intIn(t.hills, 0, 32)},
 	    {"max_slope", num(t.max_slope)},
 	    {"outskirts_m", num(t.outskirts_m)}};
+	IndoorParams& in = sc.indoor;
+	const std::map<std::string, Reader::Handler> indoorKeys = {
+	    {"rooms_x", intIn(in.rooms_x, 1, 20)},
+	    {"rooms_y", intIn(in.rooms_y, 1, 20)},
+	    {"room_size_m", num(in.room_size_m)},
+	    {"ceiling_m", num(in.ceiling_m)},
+	    {"wall_m", num(in.wall_m)},
+	    {"door_m", num(in.door_m)},
+	    {"furniture_per_room", intIn(in.furniture_per_room, 0, 30)},
+	    {"people_per_room", intIn(in.people_per_room, 0, 10)}};
 	RouteParams& rt = sc.route;
 	bool patternGiven = false;
 	const std::map<std::string, Reader::Handler> routeKeys = {
@@ -211,6 +221,9 @@ Scenario loadScenario(const std::string& path)
 			     r.forEachKey(n, k, routeKeys);
 	     }},
 	    {"town", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, townKeys); }},
+	    {"world", [&](const Node& n, const std::string& k) { sc.world = r.text(n, k); }},
+	    {"indoor", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, indoorKeys); }},
+	    {"handheld", [&](const Node& n, const std::string& k) { sc.handheld = r.boolean(n, k); }},
 	    {"noise", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, noiseKeys); }}};
 
 	if (!doc.isNullNode())
@@ -243,9 +256,14 @@ void validateScenario(const Scenario& sc)
 	     "expected in [0, 0.05]");
 	need(sc.sweep_start_azimuth_deg >= -360 && sc.sweep_start_azimuth_deg <= 360,
 	     "sweep_start_azimuth_deg", "expected in [-360, 360]");
+	need(sc.world == "town" || sc.world == "indoor", "world", "expected town or indoor");
 	need(sc.route.pattern == "block_loop" || sc.route.pattern == "figure_eight" ||
+	         sc.route.pattern == "room_tour" || sc.route.pattern == "waypoints",
+	     "route.pattern", "expected block_loop, figure_eight, room_tour or waypoints");
+	need((sc.route.pattern == "room_tour") == (sc.world == "indoor") ||
 	         sc.route.pattern == "waypoints",
-	     "route.pattern", "expected block_loop, figure_eight or waypoints");
+	     "route.pattern",
+	     "room_tour goes with world: indoor, block_loop and figure_eight with town");
 	need(sc.route.turn_radius_m >= 0, "route.turn_radius_m", "expected >= 0");
 	need(sc.route.blocks_x <= sc.town.blocks_x && sc.route.blocks_y <= sc.town.blocks_y,
 	     "route.blocks_x",

@@ -40,17 +40,22 @@ Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route
 
 Simulator Simulator::fromScenario(const Scenario& sc)
 {
-	auto world = std::make_shared<const World>(World::generate(sc.town, sc.seed));
+	auto world = std::make_shared<const World>(sc.world == "indoor"
+	                                               ? World::generateIndoor(sc.indoor, sc.seed)
+	                                               : World::generate(sc.town, sc.seed));
 	std::vector<Eigen::Vector2d> wp;
-	if (sc.route.pattern == "block_loop")
+	if (sc.route.pattern == "room_tour")
+		wp = Route::roomTour(sc.indoor);
+	else if (sc.route.pattern == "block_loop")
 		wp = Route::blockLoop(sc.town, sc.route.blocks_x, sc.route.blocks_y);
 	else if (sc.route.pattern == "figure_eight")
 		wp = Route::figureEight(sc.town);
 	else if (sc.route.pattern == "waypoints")
 		wp = sc.route.waypoints;
 	else
-		throw std::invalid_argument(sc.source + ": route.pattern '" + sc.route.pattern +
-		                            "' unknown (known: block_loop, figure_eight, waypoints)");
+		throw std::invalid_argument(
+		    sc.source + ": route.pattern '" + sc.route.pattern +
+		    "' unknown (known: block_loop, figure_eight, room_tour, waypoints)");
 	SimulatorOptions o;
 	o.noise = sc.noise;
 	o.seed = sc.seed;
@@ -61,6 +66,7 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	o.threads = sc.threads;
 	o.point_resolution_m = sc.point_resolution_m;
 	o.motion_within_sweep = sc.motion_within_sweep;
+	o.handheld = sc.handheld;
 	o.sweep.startAzimuth_deg = sc.sweep_start_azimuth_deg;
 	o.sweep.clockwise = sc.sweep_clockwise;
 	return Simulator(std::move(world), LidarModel::byName(sc.lidar),
@@ -72,16 +78,29 @@ double Simulator::stamp(std::size_t k) const
 	return opt_.start_stamp_s + static_cast<double>(k) / opt_.rate_hz;
 }
 
+mrpt::poses::CPose3D Simulator::poseAfter(double s, double t) const
+{
+	const auto P = sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
+	if (!opt_.handheld)
+		return P;
+	constexpr double kTwoPi = 2 * 3.14159265358979323846, kD = kTwoPi / 360;
+	const mrpt::poses::CPose3D sway(
+	    0, 0, 0.02 * std::sin(kTwoPi * 1.8 * t), 8 * kD * std::sin(kTwoPi * 0.7 * t),
+	    3 * kD * std::sin(kTwoPi * 1.1 * t + 1), 3 * kD * std::sin(kTwoPi * 0.9 * t + 2));
+	return P + sway;
+}
+
 mrpt::poses::CPose3D Simulator::sensorPose(std::size_t k) const
 {
-	const double s = opt_.speed_mps * static_cast<double>(k) / opt_.rate_hz;
-	return sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
+	// (The distance as speed * k / rate, not speed * (k / rate): the same bits as before.)
+	return poseAfter(opt_.speed_mps * static_cast<double>(k) / opt_.rate_hz,
+	                 static_cast<double>(k) / opt_.rate_hz);
 }
 
 mrpt::poses::CPose3D Simulator::sensorPoseAt(double stampSec) const
 {
-	const double s = opt_.speed_mps * std::max(0.0, stampSec - opt_.start_stamp_s);
-	return sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
+	const double t = std::max(0.0, stampSec - opt_.start_stamp_s);
+	return poseAfter(opt_.speed_mps * t, t);
 }
 
 Scan Simulator::scan(std::size_t k) const

@@ -121,6 +121,12 @@ const char* kindName(ObjectKind k)
 			return "tree-trunk";
 		case ObjectKind::TreeCrown:
 			return "tree-crown";
+		case ObjectKind::Furniture:
+			return "furniture";
+		case ObjectKind::Person:
+			return "person";
+		case ObjectKind::Ceiling:
+			return "ceiling";
 	}
 	return "?";
 }
@@ -143,6 +149,12 @@ float nominalIntensity(ObjectKind k)
 			return 0.25f;
 		case ObjectKind::TreeCrown:
 			return 0.2f;
+		case ObjectKind::Furniture:
+			return 0.55f;
+		case ObjectKind::Person:
+			return 0.35f;
+		case ObjectKind::Ceiling:
+			return 0.6f;
 		case ObjectKind::None:
 			break;
 	}

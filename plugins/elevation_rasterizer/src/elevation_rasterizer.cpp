@@ -49,6 +49,7 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 	r.removeGround = p.getBool("remove_ground", r.removeGround);
 	r.groundThreshold_m = p.getDouble("ground_threshold_m", r.groundThreshold_m);
 	r.belowGround_m = p.getDouble("below_ground_m", r.belowGround_m);
+	r.maxHeight_m = p.getDouble("max_height_m", r.maxHeight_m);
 	r.greyMin_m = p.getDouble("grey_min_m", r.greyMin_m);
 	r.greyMax_m = p.getDouble("grey_max_m", r.greyMax_m);
 	r.equalize = p.getBool("equalize", r.equalize);
@@ -68,6 +69,7 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 	p.requirePositive(r.sensorHeight_m, "sensor_height_m");
 	p.requireAtLeast(r.groundThreshold_m, 0, "ground_threshold_m");
 	p.requireAtLeast(r.belowGround_m, 0, "below_ground_m");
+	p.requireAtLeast(r.maxHeight_m, 0, "max_height_m");
 	p.require(r.greyMax_m > r.greyMin_m, r.greyMax_m, "grey_max_m", "must be above grey_min_m");
 	p.requirePositive(g.candidateMaxRange_m, "ground_candidate_max_range_m");
 	p.requireAtLeast(g.maxCandidates, 3, "ground_max_candidates");  // a plane takes 3 points

@@ -83,6 +83,7 @@ void GicpOdometry::initializeImpl(ParamReader& p)
 	maxFitness_m2_ = p.getDouble("max_fitness_m2", maxFitness_m2_);
 	minOverlap_ = p.getDouble("min_overlap", minOverlap_);
 	minConstraint_ = p.getDouble("min_constraint", minConstraint_);
+	const double lever = p.getDouble("constraint_lever_m", features::IcpParams().lever_m);
 	keyframeEvery_ = p.getInt("keyframe_every", keyframeEvery_);
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
 	infoTranslation_ = p.getDouble("information_translation", infoTranslation_);
@@ -100,8 +101,10 @@ void GicpOdometry::initializeImpl(ParamReader& p)
 	p.requirePositive(maxFitness_m2_, "max_fitness_m2");
 	p.requireRange(minOverlap_, 0, 1, "min_overlap");
 	p.requireRange(minConstraint_, 0, 1, "min_constraint");
+	p.requireAtLeast(lever, 0, "constraint_lever_m");
 	judge_ = features::IcpParams();
 	judge_.voxel_m = voxel_m_;
+	judge_.lever_m = lever;
 	p.requirePositive(infoTranslation_, "information_translation");
 	p.requirePositive(infoRotation_, "information_rotation");
 	previous_.reset();

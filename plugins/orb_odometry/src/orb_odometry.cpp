@@ -143,6 +143,8 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	icp_.maxCorrespondence_m =
 	    p.getDouble("fallback_max_correspondence_m", icp_.maxCorrespondence_m);
 	icp_.inlier_m = p.getDouble("fallback_inlier_m", icp_.inlier_m);
+	icp_.lever_m = p.getDouble("icp_lever_m", icp_.lever_m);
+	p.requireAtLeast(icp_.lever_m, 0, "icp_lever_m");
 	fallbackMinOverlap_ = p.getDouble("fallback_min_overlap", fallbackMinOverlap_);
 	fallbackMaxRange_m_ = p.getDouble("fallback_max_range_m", fallbackMaxRange_m_);
 	fallbackMinConstraint_ = p.getDouble("fallback_min_constraint", fallbackMinConstraint_);

@@ -22,7 +22,10 @@ struct IcpParams
 	double minPlanarity = 0.7;  //!< 1 - 3 * smallest / sum of eigenvalues, else no normal
 	double convergedTranslation_m = 1e-4;
 	double convergedRotation_rad = 1e-5;
-	double lever_m = 10.0;  //!< rotation is weighed by its effect at this distance
+	/** Rotation is weighed by its effect at this distance (a street scan's scale); 0: at the
+	 *  RMS distance of the points used (scale-free: indoors, where walls are 3-5 m away, a
+	 *  fixed 10 m makes every rotation look weakly pinned). */
+	double lever_m = 10.0;
 };
 
 struct IcpResult

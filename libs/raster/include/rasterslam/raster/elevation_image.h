@@ -26,6 +26,9 @@ struct RasterParams
 	double minRange_m = 2.0, maxRange_m = 50.0;
 	/** Points more than this below the ground plane are outliers (reflections, noise). */
 	double belowGround_m = 0.5;
+	/** Points higher than this above the ground are dropped (a ceiling indoors would cover
+	 *  every pixel); 0: no limit. */
+	double maxHeight_m = 0;
 	/** Ground removal: points within this height of the plane are ground. */
 	bool removeGround = true;
 	double groundThreshold_m = 0.25;

@@ -31,6 +31,10 @@ class Route
 	/** Two loops around the two south-western blocks joined through their common street
 	 *  (needs blocks_x >= 2): the middle street is driven twice in the same direction. */
 	static std::vector<Eigen::Vector2d> figureEight(const TownParams& town);
+	/** Through every room of the indoor world, room centre to room centre through the doors,
+	 *  row by row (a serpentine); with an even rooms_y it ends next to the first room, so a
+	 *  closed route returns there through a door. */
+	static std::vector<Eigen::Vector2d> roomTour(const IndoorParams& indoor);
 
 	/** Pose after driving s metres from the start. Throws std::logic_error on an empty route. */
 	PlanarPose at(double s) const;

@@ -23,7 +23,8 @@ struct NoiseParams
 
 struct RouteParams
 {
-	/** "block_loop", "figure_eight", or "waypoints" (then `waypoints` is used). */
+	/** "block_loop", "figure_eight", "room_tour" (indoor) or "waypoints" (then `waypoints` is
+	 *  used). */
 	std::string pattern = "block_loop";
 	/** Size of the block loop, in blocks. */
 	int blocks_x = 2;
@@ -49,6 +50,12 @@ struct Scenario
 	int threads = 2;
 	/** Point coordinates are rounded to multiples of this; 0 keeps them unrounded. */
 	double point_resolution_m = 1.0 / 1024;
+	/** "town" or "indoor". */
+	std::string world = "town";
+	IndoorParams indoor;
+	/** The sensor carried by hand: it sways in yaw, pitch and roll and bobs with the steps
+	 *  (see SimulatorOptions::handheld). */
+	bool handheld = false;
 	/** Each azimuth cast from the pose of its instant (see SimulatorOptions). */
 	bool motion_within_sweep = false;
 	double sweep_start_azimuth_deg = 180;

@@ -37,6 +37,10 @@ struct SimulatorOptions
 	bool motion_within_sweep = false;
 	/** Where the sweep starts and which way it spins (when motion_within_sweep is on). */
 	SweepModel sweep;
+	/** Carried by hand: on top of the route's pose the sensor sways in yaw (8 deg at 0.7 Hz),
+	 *  pitch (3 deg, 1.1 Hz) and roll (3 deg, 0.9 Hz) and bobs with the steps (2 cm, 1.8 Hz),
+	 *  as a function of the time since start_stamp_s. */
+	bool handheld = false;
 };
 
 /** Scans are instantaneous unless SimulatorOptions::motion_within_sweep is set (then every
@@ -69,6 +73,9 @@ class Simulator
 	const SimulatorOptions& options() const { return opt_; }
 
    private:
+	/** The pose `s` metres along the route, `t` seconds after the start (the hand's sway
+	 *  when handheld). */
+	mrpt::poses::CPose3D poseAfter(double s, double t) const;
 	/** Casts a sweep; column a (azimuth 2 pi a / steps) leaves from columnPose[a], or from
 	 *  T_world_sensor when columnPose is empty. */
 	Scan cast(const mrpt::poses::CPose3D& T_world_sensor,

@@ -19,7 +19,10 @@ enum class ObjectKind : std::uint8_t
 	Car,
 	Pole,
 	TreeTrunk,
-	TreeCrown
+	TreeCrown,
+	Furniture,
+	Person,
+	Ceiling
 };
 
 const char* kindName(ObjectKind k);
@@ -109,6 +112,25 @@ struct TownParams
 	double pitch() const { return block_size_m + street_width_m; }
 };
 
+/** Parameters of the indoor world (see rawlogs/README.md): a grid of rooms with a door in the
+ *  middle of every inner wall, furniture, people standing, under a flat ceiling. */
+struct IndoorParams
+{
+	int rooms_x = 3;
+	int rooms_y = 2;
+	double room_size_m = 8;
+	double ceiling_m = 2.8;
+	double wall_m = 0.15;
+	double door_m = 1.0;
+	int furniture_per_room = 5;
+	int people_per_room = 1;
+	/** Centre of room (i, j). */
+	Eigen::Vector2d roomCentre(int i, int j) const
+	{
+		return {(i + 0.5) * room_size_m, (j + 0.5) * room_size_m};
+	}
+};
+
 /** Ground plus shapes. Shapes are registered in a uniform XY grid so that a ray only tests
  *  the shapes of the cells it crosses. Adding shapes is not thread-safe; raycast() is. */
 class World
@@ -121,6 +143,11 @@ class World
 	 *  of obstacles except cars parked at the kerbs. Throws std::invalid_argument on
 	 *  nonsensical parameters. */
 	static World generate(const TownParams& params, std::uint32_t seed);
+	/** The indoor world on a flat floor (z = 0): room (i, j) spans [i S, (i+1) S] x
+	 *  [j S, (j+1) S] (S = room_size_m); the lanes through the room centres and the doors are
+	 *  kept clear. Deterministic for (params, seed); throws std::invalid_argument on
+	 *  nonsensical parameters. */
+	static World generateIndoor(const IndoorParams& params, std::uint32_t seed);
 
 	/** Adds a shape as is (z extents absolute). */
 	void add(const Shape& s);
