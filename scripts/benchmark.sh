@@ -4,7 +4,9 @@
 # stage), peak memory, and accuracy (ATE; KITTI-devkit relative translation and rotation
 # errors). Inputs: the KITTI sample (../shared/data/kitti00-0000-0100, against the
 # SemanticKITTI and the official poses, 10..80 m segments) and the two shipped simulated
-# drives (rawlogs/town-loop.yaml, HDL-64E; rawlogs/town-vlp16.yaml, VLP-16).
+# drives (rawlogs/town-loop.yaml, HDL-64E; rawlogs/town-vlp16.yaml, VLP-16; town-sweep.yaml,
+# HDL-64E sweeps taken while moving, each config also with engine.deskew; indoor-handheld.yaml,
+# a VLP-16 carried through rooms, with the indoor configs instead of the given ones).
 #
 # KISS-ICP runs beside them on every input, on the same core, scored by the same evaluator:
 # it is built from the pinned sources of ../shared/anchors/kiss-icp into KISS_DIR (outside
@@ -17,7 +19,7 @@
 # usage: scripts/benchmark.sh [CONFIG.yaml ...]
 #   default configs: share/rasterslam/config/tracking.yaml (the paper's tracking) and
 #   share/rasterslam/config/gicp-baseline.yaml.  Env: BUILD (build dir), DATA, SIM_SCANS
-#   (scans of the HDL-64E town drive, default 300), KISS=0 (leave KISS-ICP out), KISS_DIR
+#   (scans of the HDL-64E town drives, default 300), KISS=0 (leave KISS-ICP out), KISS_DIR
 #   (default ~/.cache/rasterslam-bench/kiss-icp), ANCHORS (default ../shared/anchors).
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -58,15 +60,15 @@ yamlv() { sed -n "s/^ *$2: *\([-0-9.eE+]*\).*/\1/p" "$1" | head -n1; }
 colmed() { awk -F, -v c="$2" 'NR>1{print $c}' "$1" | sort -g | awk '{a[NR]=$1} END{if(NR) print a[int((NR+1)/2)]; else print 0}'; }
 
 header() {
-  printf '%-16s %7s %7s | %6s %6s %6s %6s | %7s | %7s %9s %7s | %7s %7s\n' config "ms/scan" p95 read raster odom other "peak MB" "RTE %" "RRE deg/m" "ATE m" "RTE %" "ATE m"
-  printf '%-16s %7s %7s | %27s | %7s | %25s | %15s\n' "" median "" "stage medians (ms)" "" "$1" "$2"
+  printf '%-20s %7s %7s | %6s %6s %6s %6s | %7s | %7s %9s %7s | %7s %7s\n' config "ms/scan" p95 read raster odom other "peak MB" "RTE %" "RRE deg/m" "ATE m" "RTE %" "ATE m"
+  printf '%-20s %7s %7s | %27s | %7s | %25s | %15s\n' "" median "" "stage medians (ms)" "" "$1" "$2"
 }
 
 row() {  # row NAME OUTDIR JSON1 JSON2
   local t="$2/timings.csv" y="$2/run.yaml"
   local other
   other=$(awk -F, 'NR>1{print $11+$12}' "$t" | sort -g | awk '{a[NR]=$1} END{print a[int((NR+1)/2)]}')
-  printf '%-16s %7.1f %7.1f | %6.2f %6.2f %6.2f %6.2f | %7.0f | %7.3f %9.4f %7.3f | %7s %7s\n' "$1" \
+  printf '%-20s %7.1f %7.1f | %6.2f %6.2f %6.2f %6.2f | %7.0f | %7.3f %9.4f %7.3f | %7s %7s\n' "$1" \
     "$(yamlv "$y" ms_per_scan_median)" "$(yamlv "$y" ms_per_scan_p95)" \
     "$(colmed "$t" 8)" "$(colmed "$t" 9)" "$(colmed "$t" 10)" "$other" "$(yamlv "$y" peak_rss_mb)" \
     "$(json "$3" .rel_trans_pct)" "$(json "$3" .rel_rot_deg_per_m)" "$(json "$3" .ate_rmse_m)" \
@@ -76,7 +78,7 @@ row() {  # row NAME OUTDIR JSON1 JSON2
 kiss_row() {  # kiss_row OUTDIR JSON1 JSON2: timings.csv is scan,points,read_ms,odometry_ms,total_ms
   local t="$1/timings.csv" p95
   p95=$(awk -F, 'NR>1{print $5}' "$t" | sort -g | awk '{a[NR]=$1} END{i=int(NR*0.95+0.999); if(i<1)i=1; print a[i]}')
-  printf '%-16s %7.1f %7.1f | %6.2f %6s %6.2f %6s | %7.0f | %7.3f %9.4f %7.3f | %7s %7s\n' "KISS-ICP" \
+  printf '%-20s %7.1f %7.1f | %6.2f %6s %6.2f %6s | %7.0f | %7.3f %9.4f %7.3f | %7s %7s\n' "KISS-ICP" \
     "$(colmed "$t" 5)" "$p95" "$(colmed "$t" 3)" "-" "$(colmed "$t" 4)" "-" "$(awk '{printf "%.0f", $1/1024}' "$1/peak_kb")" \
     "$(json "$2" .rel_trans_pct)" "$(json "$2" .rel_rot_deg_per_m)" "$(json "$2" .ate_rmse_m)" \
     "${3:+$(printf '%.3f' "$(json "$3" .rel_trans_pct)")}" "${3:+$(printf '%.3f' "$(json "$3" .ate_rmse_m)")}"
@@ -142,13 +144,17 @@ with_deskew() {  # with_deskew CONFIG OUT
   else { cat "$1"; printf 'engine:\n  deskew: constant_velocity\n'; } >"$2"; fi
 }
 
-for scen in town-loop town-vlp16 town-sweep; do
+for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
+  segs=50:200:50 kissopt=()
   case "$scen" in
     town-loop) n="$SIM_SCANS"; sim="$WORK/town-loop-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans" ;;
     town-vlp16) n=""; sim="$WORK/$scen.rawlog"; what="400 VLP-16 scans" ;;
     town-sweep) n="$SIM_SCANS"; sim="$WORK/town-sweep-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans, motion within each sweep; +deskew: engine.deskew on" ;;
+    indoor-handheld) n=""; sim="$WORK/$scen.rawlog"; what="450 VLP-16 scans carried by hand through rooms; the indoor configs"
+      segs=10:40:10; kissopt=(--max-range 30 --min-range 0.5) ;;
   esac
   cfgs=("$@")
+  [ "$scen" != indoor-handheld ] || cfgs=("$here/share/rasterslam/config/indoor.yaml" "$here/share/rasterslam/config/gicp-indoor.yaml")
   if [ "$scen" = town-sweep ]; then
     cfgs=()
     for cfg in "$@"; do
@@ -156,13 +162,14 @@ for scen in town-loop town-vlp16 town-sweep; do
     done
   fi
   [ -f "$sim" ] || "$bin/rasterslam-sim" --scenario "$here/rawlogs/$scen.yaml" ${n:+--scans "$n"} -o "$sim" >/dev/null 2>&1
-  echo "Simulated drive (rawlogs/$scen.yaml, $what; plain rawlog); relative errors on 50..200 m segments"
+  IFS=: read -r s0 s1 _ <<<"$segs"
+  echo "Simulated drive (rawlogs/$scen.yaml, $what; plain rawlog); relative errors on $s0..$s1 m segments"
   header "vs simulator ground truth" ""
   outs=(); names=(); jsons=()
   for cfg in "${cfgs[@]}"; do
     name="$(basename "$cfg" .yaml)"; out="$WORK/sim-$scen-$name"
     $PIN "$bin/rasterslam" run --rawlog "$sim" --config "$cfg" --out "$out" --quiet >/dev/null
-    gt=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments 50:200:50 --json)
+    gt=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments "$segs" --json)
     row "$name" "$out" "$gt" ""
     outs+=("$out"); names+=("$name"); jsons+=("$gt")
   done
@@ -170,8 +177,8 @@ for scen in town-loop town-vlp16 town-sweep; do
     velo="$WORK/$scen-bin"
     [ -f "$velo/times.txt" ] || { rm -rf "$velo"; "$kiss/rawlog2bin" "$sim" "$velo" >/dev/null 2>&1; }
     kout="$WORK/sim-$scen-kiss"
-    run_kiss "$velo" "$kout"
-    kgt=$("$bin/rasterslam-eval" traj --gt "$velo/groundtruth.kitti" --est "$kout/trajectory.kitti" --segments 50:200:50 --json)
+    run_kiss "$velo" "$kout" "${kissopt[@]}"
+    kgt=$("$bin/rasterslam-eval" traj --gt "$velo/groundtruth.kitti" --est "$kout/trajectory.kitti" --segments "$segs" --json)
     kiss_row "$kout" "$kgt" ""
   fi
   [ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
