@@ -1,6 +1,8 @@
 # Quick start (a fresh Debian 12 machine):
 #   make demo   installs what is missing, builds, simulates a town drive and runs SLAM on it
 #   make test   installs what is missing, builds and runs the whole test suite
+#   make bench-quick / make bench   the benchmark report, bench/results/REPORT.md with plots
+#               (under 10 minutes / about an hour)
 BUILD ?= build
 JOBS ?= $(shell nproc)
 DEMO_SCENARIO ?= rawlogs/town-loop.yaml
@@ -8,7 +10,7 @@ DEMO_RAWLOG ?= $(BUILD)/rawlogs/town-loop.rawlog
 DEMO_OUT ?= out/demo
 DEMO_CONFIG ?= slam
 
-.PHONY: all deps configure build demo test clean
+.PHONY: all deps configure build demo test bench bench-quick clean
 
 all: build
 
@@ -34,6 +36,12 @@ demo: build
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+bench: build
+	BUILD=$(BUILD) bash scripts/bench-report.sh
+
+bench-quick: build
+	BUILD=$(BUILD) bash scripts/bench-report.sh --quick
 
 clean:
 	rm -rf $(BUILD) out

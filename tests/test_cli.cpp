@@ -5,6 +5,7 @@
 // exits 1 with a message naming the file.
 #include <fstream>
 #include <iterator>
+#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <string>
 #include <utility>
@@ -320,4 +321,43 @@ TEST(Cli, DefaultRawlogIsPlainAndBenchReadReadsEveryFormat)
 		EXPECT_EQ((*it)[3].str(), "600") << r.output;  // (500 + 600 + 700) / 3
 	}
 	EXPECT_EQ(rows, 3) << r.output;
+}
+
+// `make bench-quick` and `make bench` write bench/results/REPORT.md through
+// scripts/bench-report.sh; its smoke mode (40-scan drives, no KITTI, no KISS-ICP) checks that a
+// report is made whole: the commit, each drive's table, and every plot it names, readable.
+TEST(BenchReport, SmokeReportIsComplete)
+{
+	const test::ScopedTempDir dir("bench-report");
+	const std::string build = fs::path(RASTERSLAM_BIN_DIR).parent_path().string();
+	const auto r = test::runCommand("OUT=" + dir.path().string() + " BUILD=" + build + " bash " +
+	                                test::sourcePath("scripts/bench-report.sh") + " --smoke");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	std::ifstream in(dir / "REPORT.md");
+	ASSERT_TRUE(in.good()) << r.output;
+	const std::string md((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+	EXPECT_TRUE(std::regex_search(md, std::regex("commit: `[0-9a-f]{7,}")));
+	EXPECT_TRUE(contains(md, "## Tracking")) << md;
+	EXPECT_FALSE(contains(md, "FAILED")) << md;
+	for (const std::string scen : {"town-loop", "town-vlp16", "town-sweep", "indoor-handheld"})
+		EXPECT_TRUE(contains(md, "rawlogs/" + scen + ".yaml, 40 ")) << scen;
+	for (const std::string cfg :
+	     {"tracking ", "gicp-baseline ", "tracking+deskew ", "indoor ", "gicp-indoor "})
+		EXPECT_TRUE(std::regex_search(
+		    md, std::regex("\n" + std::regex_replace(cfg, std::regex("\\+"), "\\+") +
+		                   " +[0-9]+\\.[0-9] ")))
+		    << cfg;
+	// Every plot the report names is there and decodes.
+	int plots = 0;
+	const std::regex img("!\\[[^\\]]*\\]\\(([^)]+\\.png)\\)");
+	for (auto it = std::sregex_iterator(md.begin(), md.end(), img); it != std::sregex_iterator();
+	     ++it, ++plots)
+	{
+		const cv::Mat m = cv::imread((dir / (*it)[1].str()).string());
+		EXPECT_FALSE(m.empty()) << (*it)[1].str();
+	}
+	EXPECT_GE(plots, 5);  // four drives from above, the cost over a run
+	// Nothing left half-written.
+	for (const auto& e : fs::directory_iterator(dir.path()))
+		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }

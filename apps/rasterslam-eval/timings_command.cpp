@@ -5,6 +5,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <rasterslam/eval/trajectory_plot.h>
+
 #include "cli.h"
 
 namespace rasterslam_eval_cli
@@ -443,11 +445,7 @@ cv::Mat renderPlot(const std::vector<Run>& runs, std::size_t window)
 
 void savePlot(const std::string& path, const cv::Mat& img)
 {
-	std::vector<uchar> png;
-	if (!cv::imencode(".png", img, png))
-		throw std::runtime_error("cannot encode the plot '" + path + "'");
-	// Through a temporary file: a reader never sees half a PNG.
-	io::writeFileAtomically(path, std::string(png.begin(), png.end()));
+	eval::writePng(path, img);
 }
 
 /** The run's name when no --label is given: its folder ("runs/a/" and "runs/a/timings.csv"

@@ -1,7 +1,9 @@
 // rasterslam-eval traj: ATE, RPE and the KITTI devkit relative errors.
 #include <mrpt/core/format.h>
 
+#include <filesystem>
 #include <optional>
+#include <rasterslam/eval/trajectory_plot.h>
 
 #include "cli.h"
 
@@ -26,7 +28,19 @@ struct TrajOptions
 	double maxDt = 0.02;
 	std::size_t step = 10;
 	bool json = false;
+	std::string plot;                   //!< PNG of the trajectories from above
+	std::vector<std::string> plotAlso;  //!< more estimates drawn on it
+	std::vector<std::string> labels;    //!< legend names: E, then each --plot-also
 };
+
+/** A legend name from a trajectory's path: its folder ("runs/kiss/trajectory.kitti" ->
+ *  "kiss"), or the file name without extension. */
+std::string nameOf(const std::string& path)
+{
+	const std::filesystem::path p(path);
+	const std::string folder = p.parent_path().filename().string();
+	return folder.empty() || folder == "." ? p.stem().string() : folder;
+}
 
 io::TrajectoryFormat parseFormat(const std::string& s)
 {
@@ -141,6 +155,35 @@ int runTraj(const TrajOptions& o)
 	}
 
 	const eval::AteResult ate = eval::computeAte(gt.traj, est.traj, a, fixedAlign);
+	if (!o.plot.empty())
+	{
+		// Each estimate aligned on the ground truth as E is (its own SE(3) fit, or the given).
+		std::vector<eval::PlottedTrajectory> drawn;
+		char ateText[64];
+		const auto label = [&](std::size_t k, const std::string& path, double rmse)
+		{
+			std::snprintf(ateText, sizeof(ateText), " (ATE %.3f m)", rmse);
+			return (k < o.labels.size() ? o.labels[k] : nameOf(path)) + ateText;
+		};
+		drawn.push_back(eval::alignedForPlot(est.traj, a, ate.T_gt_est, label(0, o.est, ate.rmse_m)));
+		for (std::size_t k = 0; k < o.plotAlso.size(); k++)
+		{
+			const Input more = loadInput(o, o.plotAlso[k], o.estFormat, o.estCalib);
+			const bool stamps = assocMode == "stamp" || (assocMode == "auto" && gt.stamped && more.stamped);
+			const eval::Association am = eval::associate(gt.traj, more.traj, !stamps, maxDt);
+			if (am.gt.size() < 2)
+				throw std::runtime_error("only " + std::to_string(am.gt.size()) +
+				                         " pose pairs associated between '" + o.gt + "' and '" +
+				                         o.plotAlso[k] + "'");
+			const eval::AteResult am_ate = eval::computeAte(gt.traj, more.traj, am, fixedAlign);
+			drawn.push_back(eval::alignedForPlot(more.traj, am, am_ate.T_gt_est,
+			                                     label(k + 1, o.plotAlso[k], am_ate.rmse_m)));
+		}
+		std::vector<Eigen::Vector2d> gtXY;
+		for (const std::size_t i : a.gt)
+			gtXY.emplace_back(gt.traj[i].pose.translation().x(), gt.traj[i].pose.translation().y());
+		eval::writePng(o.plot, eval::renderTrajectoryPlot(gtXY, drawn, "from above: " + o.gt));
+	}
 	const Eigen::Quaterniond alignQ(ate.T_gt_est.linear());
 	const Eigen::Vector3d alignT = ate.T_gt_est.translation();
 	const eval::RpeResult rpe = eval::computeRpe(gt.traj, est.traj, a);
@@ -312,6 +355,17 @@ Command addTraj(CLI::App& app)
 	    ->type_name("N")
 	    ->capture_default_str();
 	sub->add_flag("--json", o->json, "print one JSON object instead of text");
+	sub->add_option("--plot", o->plot,
+	                "write a PNG of the ground truth and E from above (E aligned as for the ATE)")
+	    ->type_name("PNG");
+	sub->add_option("--plot-also", o->plotAlso,
+	                "another estimate to draw on the --plot (repeatable; each aligned on its own)")
+	    ->check(cli::unnamed(CLI::ExistingFile))
+	    ->type_name("FILE");
+	sub->add_option("--label", o->labels,
+	                "legend name of E, then of each --plot-also in order (default: the file's "
+	                "folder)")
+	    ->type_name("NAME");
 	return {sub, [o] { return runTraj(*o); }};
 }
 

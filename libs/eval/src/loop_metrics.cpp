@@ -1,5 +1,6 @@
 // Loop-closure precision/recall against ground truth, the score-threshold sweep, its plot.
 #include <rasterslam/eval/loop_metrics.h>
+#include <rasterslam/eval/trajectory_plot.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -458,35 +459,7 @@ cv::Mat renderLoopPrPlot(const LoopEvalResult& r, const std::string& title, int 
 
 void saveLoopPrPlot(const std::string& path, const LoopEvalResult& r, const std::string& title)
 {
-	namespace fs = std::filesystem;
-	const cv::Mat img = renderLoopPrPlot(r, title);
-	const fs::path target(path);
-	// imwrite picks the encoder by extension, so the temporary name must end in .png too.
-	const fs::path tmp = target.parent_path() / ("." + target.filename().string() + ".tmp-" +
-	                                             std::to_string(::getpid()) + ".png");
-	bool ok = false;
-	try
-	{
-		ok = cv::imwrite(tmp.string(), img);
-	}
-	catch (const cv::Exception&)
-	{
-		ok = false;
-	}
-	if (!ok)
-	{
-		std::error_code ec;
-		fs::remove(tmp, ec);
-		throw std::runtime_error("cannot write the plot '" + path + "'");
-	}
-	std::error_code ec;
-	fs::rename(tmp, target, ec);
-	if (ec)
-	{
-		const std::string why = ec.message();
-		fs::remove(tmp, ec);
-		throw std::runtime_error("cannot write the plot '" + path + "': " + why);
-	}
+	writePng(path, renderLoopPrPlot(r, title));
 }
 
 }  // namespace rasterslam::eval
