@@ -59,10 +59,10 @@ section() {
   {
     echo "## $title"
     echo
-    echo "\`$*\` (${mode#--} mode; $((t1 - t0)) s$([ $rc = 0 ] || echo "; FAILED with exit status $rc"))"
+    echo "\`$(echo "$*" | sed "s#$here/##g")\` (${mode#--} mode; $((t1 - t0)) s$([ $rc = 0 ] || echo "; FAILED with exit status $rc"))"
     echo
     echo '```'
-    cat "$log"
+    sed "s#$here/##g" "$log"
     [ $rc = 0 ] || tail -n 20 "$log.err"
     echo '```'
     echo
@@ -86,8 +86,8 @@ section "Tracking: the paper's method, GICP and KISS-ICP" env "${bench_env[@]}" 
 # Trajectory plots of what benchmark.sh ran.
 t="$work/tracking"
 D="${DATA:-$here/../shared/data/kitti00-0000-0100}"
-trajplot() {  # trajplot PNG GT [--calib C] -- EST LABEL [EST LABEL ...]
-  local png=$1 gt=$2; shift 2
+trajplot() {  # trajplot PNG TITLE GT [--calib C] -- EST LABEL [EST LABEL ...]
+  local png=$1 title=$2 gt=$3; shift 3
   local pre=() ests=() labels=()
   while [ $# -gt 0 ] && [ "$1" != -- ]; do pre+=("$1"); shift; done
   shift
@@ -96,12 +96,12 @@ trajplot() {  # trajplot PNG GT [--calib C] -- EST LABEL [EST LABEL ...]
   local also=()
   for e in "${ests[@]:1}"; do also+=(--plot-also "$e"); done
   "$bin/rasterslam-eval" traj --gt "$gt" "${pre[@]}" --est "${ests[0]}" "${also[@]}" "${labels[@]}" \
-    --segments 10:40:10 --plot "$OUT/$png" >/dev/null
+    --segments 10:40:10 --title "$title" --plot "$OUT/$png" >/dev/null
 }
 echo "### Trajectories from above" >>"$report"
 echo >>"$report"
 if [ -f "$t/kitti-vc0-tracking/trajectory.kitti" ]; then
-  trajplot traj-kitti.png "$D/poses_semantickitti.txt" --calib "$D/calib.txt" -- \
+  trajplot traj-kitti.png "KITTI 00 frames 0-100, SemanticKITTI poses" "$D/poses_semantickitti.txt" --calib "$D/calib.txt" -- \
     "$t/kitti-vc0-tracking/trajectory.kitti" tracking "$t/kitti-vc0-gicp-baseline/trajectory.kitti" GICP \
     "$t/kitti-vc0-kiss/trajectory.kitti" KISS-ICP
   plot "KITTI 00 frames 0-100 against the SemanticKITTI poses" traj-kitti.png
@@ -112,7 +112,7 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
     indoor-handheld) a=indoor b=gicp-indoor ;;
     *) a=tracking b=gicp-baseline ;;
   esac
-  trajplot "traj-$scen.png" "$t/sim-$scen-$a/groundtruth.tum" -- \
+  trajplot "traj-$scen.png" "rawlogs/$scen.yaml" "$t/sim-$scen-$a/groundtruth.tum" -- \
     "$t/sim-$scen-$a/trajectory.tum" "$a" "$t/sim-$scen-$b/trajectory.tum" "$b" \
     "$t/sim-$scen-kiss/trajectory.kitti" KISS-ICP
   plot "rawlogs/$scen.yaml" "traj-$scen.png"

@@ -1,9 +1,9 @@
 // rasterslam-eval traj: ATE, RPE and the KITTI devkit relative errors.
 #include <mrpt/core/format.h>
+#include <rasterslam/eval/trajectory_plot.h>
 
 #include <filesystem>
 #include <optional>
-#include <rasterslam/eval/trajectory_plot.h>
 
 #include "cli.h"
 
@@ -31,6 +31,7 @@ struct TrajOptions
 	std::string plot;                   //!< PNG of the trajectories from above
 	std::vector<std::string> plotAlso;  //!< more estimates drawn on it
 	std::vector<std::string> labels;    //!< legend names: E, then each --plot-also
+	std::string title;                  //!< of the plot
 };
 
 /** A legend name from a trajectory's path: its folder ("runs/kiss/trajectory.kitti" ->
@@ -165,11 +166,13 @@ int runTraj(const TrajOptions& o)
 			std::snprintf(ateText, sizeof(ateText), " (ATE %.3f m)", rmse);
 			return (k < o.labels.size() ? o.labels[k] : nameOf(path)) + ateText;
 		};
-		drawn.push_back(eval::alignedForPlot(est.traj, a, ate.T_gt_est, label(0, o.est, ate.rmse_m)));
+		drawn.push_back(
+		    eval::alignedForPlot(est.traj, a, ate.T_gt_est, label(0, o.est, ate.rmse_m)));
 		for (std::size_t k = 0; k < o.plotAlso.size(); k++)
 		{
 			const Input more = loadInput(o, o.plotAlso[k], o.estFormat, o.estCalib);
-			const bool stamps = assocMode == "stamp" || (assocMode == "auto" && gt.stamped && more.stamped);
+			const bool stamps =
+			    assocMode == "stamp" || (assocMode == "auto" && gt.stamped && more.stamped);
 			const eval::Association am = eval::associate(gt.traj, more.traj, !stamps, maxDt);
 			if (am.gt.size() < 2)
 				throw std::runtime_error("only " + std::to_string(am.gt.size()) +
@@ -182,7 +185,8 @@ int runTraj(const TrajOptions& o)
 		std::vector<Eigen::Vector2d> gtXY;
 		for (const std::size_t i : a.gt)
 			gtXY.emplace_back(gt.traj[i].pose.translation().x(), gt.traj[i].pose.translation().y());
-		eval::writePng(o.plot, eval::renderTrajectoryPlot(gtXY, drawn, "from above: " + o.gt));
+		eval::writePng(o.plot, eval::renderTrajectoryPlot(
+		                           gtXY, drawn, o.title.empty() ? "from above: " + o.gt : o.title));
 	}
 	const Eigen::Quaterniond alignQ(ate.T_gt_est.linear());
 	const Eigen::Vector3d alignT = ate.T_gt_est.translation();
@@ -366,6 +370,8 @@ Command addTraj(CLI::App& app)
 	                "legend name of E, then of each --plot-also in order (default: the file's "
 	                "folder)")
 	    ->type_name("NAME");
+	sub->add_option("--title", o->title, "title of the --plot (default: the ground truth's path)")
+	    ->type_name("TEXT");
 	return {sub, [o] { return runTraj(*o); }};
 }
 
