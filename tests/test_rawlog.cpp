@@ -16,6 +16,7 @@
 #include <rasterslam/io/rawlog_source.h>
 #include <rasterslam/io/rawlog_writer.h>
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -398,4 +399,56 @@ TEST(Rawlog, BadFilesThrowNamingTheFile)
 	const auto empty = (dir / "empty.rawlog").string();
 	std::ofstream(empty).close();
 	EXPECT_NE(errorOf(empty).find("empty file"), std::string::npos) << errorOf(empty);
+}
+
+// A sensory frame (or action collection) whose count is damaged stops the reading at once with
+// the count named, before MRPT sizes a container by it (a count of 2^31 asked for gigabytes of
+// blocks until the memory cap; this test uses 2^20, harmless even without the check).
+TEST(Rawlog, DamagedFrameCountIsRefusedBeforeMrptAllocates)
+{
+	std::vector<std::vector<PointXYZI>> expected;
+	const auto obs = makeObservations(expected);
+	const auto dir = test::tempDir("rawlog");
+	for (const std::string cls : {"CSensoryFrame", "CActionCollection"})
+	{
+		std::vector<mrpt::serialization::CSerializable::Ptr> objs;
+		for (size_t k = 0; k < 2; k++)
+		{
+			auto acts = CActionCollection::Create();
+			CActionRobotMovement3D mov;
+			acts->insert(mov);
+			objs.push_back(acts);
+			auto sf = CSensoryFrame::Create();
+			sf->insert(obs[k]);
+			objs.push_back(sf);
+		}
+		const auto path = (dir / ("count-" + cls + ".rawlog")).string();
+		writeObjects<mrpt::io::CFileOutputStream>(path, objs);
+		std::string bytes;
+		{
+			std::ifstream in(path, std::ios::binary);
+			bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+		}
+		// The second object of that class: its name, one version byte, then the count.
+		auto pos = bytes.find(cls);
+		pos = bytes.find(cls, pos + 1);
+		ASSERT_NE(pos, std::string::npos);
+		const std::size_t at = pos + cls.size() + 1;
+		uint32_t count = 0;
+		std::memcpy(&count, bytes.data() + at, 4);
+		ASSERT_EQ(count, 1u) << "the layout this test expects";
+		const uint32_t damaged = 1u << 20;
+		std::memcpy(bytes.data() + at, &damaged, 4);
+		std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+
+		io::RawlogSource src(path);
+		std::size_t scans = 0;
+		while (src.next())
+			++scans;
+		EXPECT_EQ(scans, 1u) << cls;  // the first frame's scan, then the damaged one
+		EXPECT_NE(src.stopReason().find(path), std::string::npos) << src.stopReason();
+		EXPECT_NE(src.stopReason().find("a " + cls + " claims 1048576 entries"),
+		          std::string::npos)
+		    << src.stopReason();
+	}
 }

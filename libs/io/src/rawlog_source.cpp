@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -74,6 +75,12 @@ class RawlogStream : public mrpt::io::CStream
 	bool isOpen() const { return f_ != nullptr || plain_ != nullptr; }
 	size_t Read(void* buf, size_t n) override
 	{
+		const size_t done = readRaw(buf, n);
+		watchCounts(static_cast<const unsigned char*>(buf), done);
+		return done;
+	}
+	size_t readRaw(void* buf, size_t n)
+	{
 		if (plain_)
 		{
 			const size_t done = std::fread(buf, 1, n, plain_);
@@ -122,7 +129,64 @@ class RawlogStream : public mrpt::io::CStream
 		return o > 0 ? static_cast<uint64_t>(o) : 0;
 	}
 
+	/** The most entries a sensory frame or an action collection may claim. */
+	static constexpr uint32_t kMaxEntries = 100000;
+	/** Why the stream refused a count (empty: it has not). */
+	const std::string& refusal() const { return refusal_; }
+
    private:
+	/** MRPT sizes a CSensoryFrame's (and a CActionCollection's) container by the count it
+	 *  reads, before any entry: a damaged count asks for gigabytes in blocks each small enough
+	 *  to pass, and the program only stops at its memory cap, seconds later. The stream sees
+	 *  the class name, the version byte and the count go by (three reads in a row) and refuses
+	 *  a count no real frame has. */
+	void watchCounts(const unsigned char* b, size_t n)
+	{
+		// The class name as MRPT 2 writes it (namespaced) or as older files have it.
+		const auto is = [&](const char* name)
+		{
+			const std::string full = std::string("mrpt::obs::") + name;
+			return (n == std::strlen(name) && std::memcmp(b, name, n) == 0) ||
+			       (n == full.size() && std::memcmp(b, full.data(), n) == 0);
+		};
+		switch (watch_)
+		{
+			case Watch::None:
+				if (is("CSensoryFrame") || is("CActionCollection"))
+				{
+					watch_ = Watch::Version;
+					watchedClass_ = is("CSensoryFrame") ? "CSensoryFrame" : "CActionCollection";
+				}
+				return;
+			case Watch::Version:
+				watch_ = n == 1 ? Watch::Count : Watch::None;
+				return;
+			case Watch::Count:
+				watch_ = Watch::None;
+				if (n == 4)
+				{
+					uint32_t c = 0;
+					std::memcpy(&c, b, 4);  // MRPT archives are little-endian
+					if (c > kMaxEntries)
+					{
+						// Kept: MRPT wraps the exception in its own message.
+						refusal_ = "a " + watchedClass_ + " claims " + std::to_string(c) +
+						           " entries (at most " + std::to_string(kMaxEntries) +
+						           " are plausible): a damaged count";
+						throw std::runtime_error(refusal_);
+					}
+				}
+				return;
+		}
+	}
+	enum class Watch
+	{
+		None,
+		Version,
+		Count
+	};
+	Watch watch_ = Watch::None;
+	std::string watchedClass_, refusal_;
 	std::string path_;
 	gzFile f_ = nullptr;
 	std::FILE* plain_ = nullptr;
@@ -484,6 +548,13 @@ bool RawlogSource::readOne()
 		if (std::string(e.what()).find("std::bad_alloc") != std::string::npos)
 		{
 			stopReason_ = tooBig();
+			return false;
+		}
+		if (!impl_->counting->refusal().empty())
+		{
+			stopReason_ = path_ + ": corrupt object at uncompressed byte " +
+			              std::to_string(before) + " (after " + std::to_string(scans_) +
+			              " scans): " + impl_->counting->refusal();
 			return false;
 		}
 		const std::string full = e.what();
