@@ -28,6 +28,7 @@ for p in rasterslam rasterslam-eval rasterslam-sim; do
 done
 command -v jq >/dev/null || { echo "bench-report: jq is needed (scripts/install-deps.sh)" >&2; exit 1; }
 mkdir -p "$OUT"
+rm -f "$OUT"/*.png  # a plot a failed run did not make must not show the last report's
 work="$OUT/work"
 rm -rf "$work"
 mkdir -p "$work"
@@ -35,7 +36,7 @@ report="$OUT/.REPORT.md.tmp-$$"
 trap 'rm -f "$report"' EXIT
 
 commit="$(git -C "$here" rev-parse --short HEAD 2>/dev/null || echo unknown)"
-git -C "$here" diff --quiet HEAD 2>/dev/null || commit="$commit (with uncommitted changes)"
+git -C "$here" diff --quiet HEAD -- . ':!bench/results' 2>/dev/null || commit="$commit (with uncommitted changes)"
 cpu="$(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -n1)"
 mem="$(awk '/MemTotal/{printf "%.0f GB", $2/1048576}' /proc/meminfo)"
 {
@@ -96,7 +97,8 @@ trajplot() {  # trajplot PNG TITLE GT [--calib C] -- EST LABEL [EST LABEL ...]
   local also=()
   for e in "${ests[@]:1}"; do also+=(--plot-also "$e"); done
   "$bin/rasterslam-eval" traj --gt "$gt" "${pre[@]}" --est "${ests[0]}" "${also[@]}" "${labels[@]}" \
-    --segments 10:40:10 --title "$title" --plot "$OUT/$png" >/dev/null
+    --segments 10:40:10 --title "$title" --plot "$OUT/$png" >/dev/null 2>"$work/$png.err" ||
+    printf '(plot %s not made: %s)\n\n' "$png" "$(tail -n 1 "$work/$png.err")" >>"$report"
 }
 echo "### Trajectories from above" >>"$report"
 echo >>"$report"
@@ -124,7 +126,8 @@ for r in kitti-vc0-tracking sim-town-loop-tracking sim-town-vlp16-tracking; do
   [ -f "$t/$r/timings.csv" ] && runs+=("$t/$r" --label "$r")
 done
 if [ ${#runs[@]} -gt 0 ]; then
-  "$bin/rasterslam-eval" timings "${runs[@]}" --plot "$OUT/timings-tracking.png" >/dev/null
+  "$bin/rasterslam-eval" timings "${runs[@]}" --plot "$OUT/timings-tracking.png" >/dev/null 2>"$work/timings.err" ||
+    printf '(plot timings-tracking.png not made: %s)\n\n' "$(tail -n 1 "$work/timings.err")" >>"$report"
   echo "### Cost over a run (the paper's tracking)" >>"$report"
   echo >>"$report"
   plot "ms per scan and memory over a run" timings-tracking.png
@@ -137,7 +140,8 @@ if [ "$mode" != --smoke ]; then
   for scen in town-vlp16 town-loop; do
     r="$work/loops/$scen-bow"
     [ -f "$r/loops.txt" ] || continue
-    "$bin/rasterslam-eval" loops --loops "$r/loops.txt" --gt "$r/groundtruth.tum" --plot "$OUT/pr-$scen.png" >/dev/null
+    "$bin/rasterslam-eval" loops --loops "$r/loops.txt" --gt "$r/groundtruth.tum" --plot "$OUT/pr-$scen.png" >/dev/null 2>"$work/pr.err" ||
+      printf '(plot pr-%s.png not made: %s)\n\n' "$scen" "$(tail -n 1 "$work/pr.err")" >>"$report"
     plot "precision-recall, rawlogs/$scen.yaml" "pr-$scen.png"
   done
 fi

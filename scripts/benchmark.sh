@@ -56,6 +56,9 @@ fi
 # A value of a rasterslam-eval --json object by its jq path: json "$j" .ate_rmse_m (empty for null).
 json() { jq -r "$2 // empty" <<<"$1"; }
 yamlv() { sed -n "s/^ *$2: *\([-0-9.eE+]*\).*/\1/p" "$1" | head -n1; }
+# A generated rawlog to reuse: there, plain (what the programs write by default: the table
+# says so), and newer than the scenario it came from; otherwise it is made again.
+reusable() { [ -s "$1" ] && [ "$1" -nt "$2" ] && [ "$(head -c 2 "$1" | od -An -tx1 | tr -d ' ')" != 1f8b ]; }
 # median of column $2 (1-based) of a CSV with a header
 colmed() { awk -F, -v c="$2" 'NR>1{print $c}' "$1" | sort -g | awk '{a[NR]=$1} END{if(NR) print a[int((NR+1)/2)]; else print 0}'; }
 
@@ -167,7 +170,9 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
       d="$WORK/$(basename "$cfg" .yaml)+deskew.yaml"; with_deskew "$cfg" "$d"; cfgs+=("$cfg" "$d")
     done
   fi
-  [ -f "$sim" ] || "$bin/rasterslam-sim" --scenario "$here/rawlogs/$scen.yaml" ${n:+--scans "$n"} -o "$sim" >/dev/null 2>&1
+  reusable "$sim" "$here/rawlogs/$scen.yaml" ||
+    "$bin/rasterslam-sim" --scenario "$here/rawlogs/$scen.yaml" ${n:+--scans "$n"} -o "$sim" >"$sim.log" 2>&1 ||
+    { echo "benchmark: rasterslam-sim failed on rawlogs/$scen.yaml: $(tail -n 1 "$sim.log")" >&2; exit 1; }
   IFS=: read -r s0 s1 _ <<<"$segs"
   echo "Simulated drive (rawlogs/$scen.yaml, $what; plain rawlog); relative errors on $s0..$s1 m segments"
   header "vs simulator ground truth" ""
@@ -181,14 +186,16 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
   done
   if [ -n "$kiss" ]; then
     velo="$WORK/$scen-bin"
-    [ -f "$velo/times.txt" ] || { rm -rf "$velo"; "$kiss/rawlog2bin" "$sim" "$velo" >/dev/null 2>&1; }
+    [ -f "$velo/times.txt" ] && [ "$velo/times.txt" -nt "$sim" ] ||
+      { rm -rf "$velo"; "$kiss/rawlog2bin" "$sim" "$velo" >"$WORK/rawlog2bin.log" 2>&1 ||
+        { echo "benchmark: rawlog2bin failed on $sim: $(tail -n 1 "$WORK/rawlog2bin.log")" >&2; exit 1; }; }
     kout="$WORK/sim-$scen-kiss"
     run_kiss "$velo" "$kout" "${kissopt[@]}"
     kgt=$("$bin/rasterslam-eval" traj --gt "$velo/groundtruth.kitti" --est "$kout/trajectory.kitti" --segments "$segs" --json)
     kiss_row "$kout" "$kgt" ""
   fi
-  [ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
   ri=0; [ "$scen" != town-sweep ] || ri=1  # there: the first config with de-skewing
+  [ ${#outs[@]} -lt 2 ] || rate_note "${outs[$ri]}" "${outs[-1]}" "${names[$ri]}" "${names[-1]}"
   [ -z "$kiss" ] || kiss_ratio "${outs[$ri]}" "${jsons[$ri]}" "$kout" "$kgt" "${names[$ri]}"
   echo
 done
@@ -204,7 +211,8 @@ if [ -d "$DATA" ]; then
       --calib "$DATA/calib.txt" --times "$DATA/times.txt" --compress 1 -o "$gz" >/dev/null
   echo
   echo "Reading the KITTI sample's 101 scans into points (ms per scan, median of passes 2..5; ratio to the .bin files)"
-  $PIN "$bin/rasterslam-bench-read" --bin "$DATA/velodyne" --rawlog "$plain" --rawlog "$gz" --passes 5 2>/dev/null
+  $PIN "$bin/rasterslam-bench-read" --bin "$DATA/velodyne" --rawlog "$plain" --rawlog "$gz" --passes 5 2>"$WORK/bench-read.log" ||
+    { echo "benchmark: rasterslam-bench-read failed: $(tail -n 1 "$WORK/bench-read.log")" >&2; exit 1; }
   if [ -n "$kiss" ]; then
     rm -rf "$WORK/read-bin"; mkdir -p "$WORK/read-bin"
     $PIN "$kiss/kiss_runner" --velodyne "$DATA/velodyne" --out "$WORK/read-bin" --threads 1 --read-only >/dev/null 2>&1

@@ -603,7 +603,8 @@ TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)
 	// rawlogs/indoor-handheld.yaml, first 200 scans (24 m, three rooms, turns of up to 13 deg
 	// a scan). Measured on all 450: gicp-indoor.yaml 0 lost, ATE 0.063 m; the paper's tracking
 	// (indoor.yaml) 6 lost, ATE 0.43 m: short of GICP (a README goal not met). This guards
-	// what the configs do: GICP tracks the walk, and the features lose at most a few scans.
+	// what the configs do: GICP tracks the walk, and the features lose at most a few scans
+	// and stay within half a metre (3 lost, ATE 0.24 m on these 200).
 	const auto sc = sim::loadScenario(test::sourcePath("rawlogs/indoor-handheld.yaml"));
 	const std::size_t n = 200;
 	const auto simu = sim::Simulator::fromScenario(sc);
@@ -630,6 +631,9 @@ TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)
 			EXPECT_LT(ate, 0.1);
 		}
 		else
+		{
 			EXPECT_LE(res.lost, 6u);
+			EXPECT_LT(ate, 0.5);  // 0.24 m measured on these 200 scans
+		}
 	}
 }

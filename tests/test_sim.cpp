@@ -521,6 +521,12 @@ TEST(SimScenario, DefaultsAndErrors)
 	expectError("range.yaml", "noise:\n  dropout_prob: 1.5\n", "noise.dropout_prob");
 	expectError("lidar.yaml", "lidar: hdl32\n", "lidar");
 	expectError("map.yaml", "noise: 3\n", "noise");
+	expectError("world.yaml", "world: moon\n", "world");
+	expectError("tour.yaml", "route: room_tour\n", "route.pattern");  // a town has no rooms
+	expectError("rows.yaml", "world: indoor\nroute: room_tour\nindoor: {rooms_y: 3}\n",
+	            "indoor.rooms_y");  // a closed tour of 3 rows would cross walls
+	expectError("one.yaml", "world: indoor\nroute: room_tour\nindoor: {rooms_x: 1, rooms_y: 1}\n",
+	            "indoor.rooms_x");
 	EXPECT_THROW(sim::loadScenario((dir / "missing.yaml").string()), std::runtime_error);
 }
 

@@ -335,6 +335,7 @@ struct Engine::RunState
 	std::optional<mrpt::poses::CPose3D> lastStep;
 	double lastStepDt = 0;
 	std::optional<double> lastTrackedStamp;
+	std::optional<double> prevReadStamp, readStamp;  //!< of the scans read before and now
 
 	// A session in a prior map (--map-in): candidate session-to-map transforms until enough
 	// agree, then the hit that anchors the session at the next keyframe.
@@ -428,6 +429,8 @@ std::optional<Scan> Engine::readScan(RunState& s)
 		if (s.opts.last && scan->index > *s.opts.last)
 			return std::nullopt;
 		s.currentIndex = scan->index;
+		s.prevReadStamp = s.readStamp;
+		s.readStamp = scan->stamp;
 		return scan;
 	}
 }
@@ -588,7 +591,9 @@ void Engine::deskew(RunState& s, Scan& scan, ScanRecord& rec)
 	// averaged over 0.5 s (RTE 0.9-1.7 % against 1.0-1.8 %; none: 2.0-3.8 %), which lags in
 	// turns.
 	const auto t0 = Clock::now();
-	const double sinceLast = scan.stamp - *s.lastTrackedStamp;
+	// Since the sweep before this one, tracked or not (a scan dropped late or skipped as bad
+	// was a sweep too); the step's own length is lastStepDt.
+	const double sinceLast = s.prevReadStamp ? scan.stamp - *s.prevReadStamp : 0;
 	const double period = sweepPeriod_s_ > 0 ? sweepPeriod_s_ : sinceLast;
 	// A gap (dropped scans, a pause): the last step says nothing about this sweep.
 	if (!(period > 0) || sinceLast > 3 * s.lastStepDt || period > 3 * s.lastStepDt)

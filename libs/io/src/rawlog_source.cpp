@@ -19,6 +19,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -85,7 +86,7 @@ class RawlogStream : public mrpt::io::CStream
 		{
 			const size_t done = std::fread(buf, 1, n, plain_);
 			if (done < n && std::ferror(plain_))
-				throw std::runtime_error("read error: " + path_);
+				throw std::runtime_error("read error: " + path_ + ": " + std::strerror(errno));
 			count_ += done;
 			return done;
 		}
@@ -223,7 +224,8 @@ std::vector<double> defaultElevations(int rows)
 }
 
 /** Points of four parallel arrays (x, y, z, intensity or none), read as one sequence: lets
- *  std::vector::assign build each point in place. */
+ *  std::vector::assign build each point in place. Its reference is a value (the point is made
+ *  on the fly), which std::vector::assign accepts: it only copies through it. */
 struct ZipPoints
 {
 	using iterator_category = std::random_access_iterator_tag;
@@ -231,8 +233,8 @@ struct ZipPoints
 	using difference_type = std::ptrdiff_t;
 	using pointer = const PointXYZI*;
 	using reference = PointXYZI;
-	const float *x, *y, *z, *i;
-	std::size_t k;
+	const float *x = nullptr, *y = nullptr, *z = nullptr, *i = nullptr;
+	std::size_t k = 0;
 	PointXYZI operator*() const { return {x[k], y[k], z[k], i ? i[k] : 0.f}; }
 	ZipPoints& operator++()
 	{
@@ -255,10 +257,16 @@ struct ZipPoints
 		k = static_cast<std::size_t>(static_cast<difference_type>(k) + d);
 		return *this;
 	}
+	ZipPoints& operator-=(difference_type d) { return *this += -d; }
 	ZipPoints operator+(difference_type d) const
 	{
 		auto r = *this;
 		return r += d;
+	}
+	ZipPoints operator-(difference_type d) const
+	{
+		auto r = *this;
+		return r -= d;
 	}
 	difference_type operator-(const ZipPoints& o) const
 	{
@@ -268,6 +276,9 @@ struct ZipPoints
 	bool operator==(const ZipPoints& o) const { return k == o.k; }
 	bool operator!=(const ZipPoints& o) const { return k != o.k; }
 	bool operator<(const ZipPoints& o) const { return k < o.k; }
+	bool operator<=(const ZipPoints& o) const { return k <= o.k; }
+	bool operator>(const ZipPoints& o) const { return k > o.k; }
+	bool operator>=(const ZipPoints& o) const { return k >= o.k; }
 };
 
 void appendTransformed(std::vector<PointXYZI>& out, const mrpt::poses::CPose3D& sensorPose, float x,
@@ -314,7 +325,8 @@ bool observationToPoints(const mrpt::obs::CObservation& o, std::vector<PointXYZI
 		if (xyzi && xyzi->getPointsBufferRef_intensity().size() >= n)
 			is = xyzi->getPointsBufferRef_intensity().data();
 		// One pass over plain arrays, each point built in place (no per-point capacity check,
-		// no zero fill first): half the reading time of a plain rawlog went here otherwise.
+		// no zero fill first): half the reading time of a plain rawlog went here otherwise. A
+		// sensor pose to apply (rare) takes a zero-filled buffer and a second pass.
 		if (pc->sensorPose == mrpt::poses::CPose3D())
 			out.assign(ZipPoints{xs.data(), ys.data(), zs.data(), is, 0},
 			           ZipPoints{xs.data(), ys.data(), zs.data(), is, n});

@@ -2,6 +2,7 @@
 // a building walked through with a handheld LiDAR (the paper's indoor dataset is such a place).
 #include <rasterslam/sim/world.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -133,10 +134,15 @@ World World::generateIndoor(const IndoorParams& p, std::uint32_t seed)
 				{
 					const int side = rng.integer(0, 3);
 					const double along = rng.uniform(-S / 2 + 1.0, S / 2 - 1.0);
-					// Not in front of a door (the middle of the side).
-					const double a = std::abs(along) < p.door_m / 2 + 0.6
-					                     ? along + (along < 0 ? -1.5 : 1.5)
-					                     : along;
+					// Not in front of a door (the middle of the side), and inside the room (a
+					// small room with a wide door has no place for one).
+					const double edge = S / 2 - p.wall_m / 2 - 0.55;
+					if (edge <= p.door_m / 2 + 0.6)
+						continue;
+					const double a = std::clamp(std::abs(along) < p.door_m / 2 + 0.6
+					                                ? along + (along < 0 ? -1.5 : 1.5)
+					                                : along,
+					                            -edge, edge);
 					const double off = S / 2 - p.wall_m / 2 - 0.25;
 					const double h = rng.uniform(1.2, 2.1);
 					if (side == 0)

@@ -260,6 +260,14 @@ void validateScenario(const Scenario& sc)
 	need(sc.route.pattern == "block_loop" || sc.route.pattern == "figure_eight" ||
 	         sc.route.pattern == "room_tour" || sc.route.pattern == "waypoints",
 	     "route.pattern", "expected block_loop, figure_eight, room_tour or waypoints");
+	need(sc.route.pattern != "room_tour" || sc.indoor.rooms_x * sc.indoor.rooms_y >= 2,
+	     "indoor.rooms_x", "room_tour needs at least 2 rooms");
+	// A closed tour returns to the first room through a door only when it ends beside it: an
+	// even number of rows, or one column.
+	need(sc.route.pattern != "room_tour" || !sc.route.closed || sc.indoor.rooms_y % 2 == 0 ||
+	         sc.indoor.rooms_x == 1,
+	     "indoor.rooms_y",
+	     "a closed room_tour needs an even rooms_y (or rooms_x 1): it would cross walls to return");
 	need((sc.route.pattern == "room_tour") == (sc.world == "indoor") ||
 	         sc.route.pattern == "waypoints",
 	     "route.pattern",

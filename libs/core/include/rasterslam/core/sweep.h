@@ -22,7 +22,7 @@ struct SweepModel
 	bool clockwise = true;
 
 	/** The share of the sweep [0, 1) elapsed when the sensor points at azimuth `az_rad`
-	 *  (atan2(y, x) of the point in the sensor frame). */
+	 *  (atan2(y, x) of the point in the frame its scan is given in). */
 	double fraction(double az_rad) const
 	{
 		constexpr double kTwoPi = 2 * 3.14159265358979323846;

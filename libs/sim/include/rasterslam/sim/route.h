@@ -32,8 +32,8 @@ class Route
 	 *  (needs blocks_x >= 2): the middle street is driven twice in the same direction. */
 	static std::vector<Eigen::Vector2d> figureEight(const TownParams& town);
 	/** Through every room of the indoor world, room centre to room centre through the doors,
-	 *  row by row (a serpentine); with an even rooms_y it ends next to the first room, so a
-	 *  closed route returns there through a door. */
+	 *  row by row (a serpentine). It ends beside the first room only with an even rooms_y (or
+	 *  one column): only then may the route be closed (the scenario checks it). */
 	static std::vector<Eigen::Vector2d> roomTour(const IndoorParams& indoor);
 
 	/** Pose after driving s metres from the start. Throws std::logic_error on an empty route. */
