@@ -447,8 +447,7 @@ TEST(Rawlog, DamagedFrameCountIsRefusedBeforeMrptAllocates)
 			++scans;
 		EXPECT_EQ(scans, 1u) << cls;  // the first frame's scan, then the damaged one
 		EXPECT_NE(src.stopReason().find(path), std::string::npos) << src.stopReason();
-		EXPECT_NE(src.stopReason().find("a " + cls + " claims 1048576 entries"),
-		          std::string::npos)
+		EXPECT_NE(src.stopReason().find("a " + cls + " claims 1048576 entries"), std::string::npos)
 		    << src.stopReason();
 	}
 }

@@ -1,11 +1,11 @@
 // rasterslam-eval timings: cost per scan and memory of runs, from their timings.csv.
+#include <rasterslam/eval/trajectory_plot.h>
+
 #include <algorithm>
 #include <array>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-
-#include <rasterslam/eval/trajectory_plot.h>
 
 #include "cli.h"
 

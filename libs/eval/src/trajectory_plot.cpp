@@ -51,7 +51,8 @@ cv::Mat renderTrajectoryPlot(const std::vector<Eigen::Vector2d>& groundTruth,
 	width = std::max(width, 400);
 	height = std::max(height, 360);
 	cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
-	const int left = 70, right = 20, top = 50, bottom = 40 + 22 * static_cast<int>(estimates.size() + 1);
+	const int left = 70, right = 20, top = 50,
+	          bottom = 40 + 22 * static_cast<int>(estimates.size() + 1);
 	const int pw = width - left - right, ph = height - top - bottom;
 	// One scale for x and y, the data centred.
 	double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
@@ -75,8 +76,9 @@ cv::Mat renderTrajectoryPlot(const std::vector<Eigen::Vector2d>& groundTruth,
 	const double cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
 	const auto px = [&](const Eigen::Vector2d& p)
 	{
-		return cv::Point(static_cast<int>(std::lround((left + pw / 2.0 + (p.x() - cx) * scale) * 16)),
-		                 static_cast<int>(std::lround((top + ph / 2.0 - (p.y() - cy) * scale) * 16)));
+		return cv::Point(
+		    static_cast<int>(std::lround((left + pw / 2.0 + (p.x() - cx) * scale) * 16)),
+		    static_cast<int>(std::lround((top + ph / 2.0 - (p.y() - cy) * scale) * 16)));
 	};
 	const auto font = cv::FONT_HERSHEY_SIMPLEX;
 	const cv::Scalar black(0, 0, 0), grid(225, 225, 225);
@@ -104,7 +106,7 @@ cv::Mat renderTrajectoryPlot(const std::vector<Eigen::Vector2d>& groundTruth,
 	            black, 1, cv::LINE_AA);
 
 	// Matplotlib's first colours, as BGR.
-	const cv::Scalar colours[] = {{180, 119, 31}, {14, 127, 255}, {44, 160, 44},
+	const cv::Scalar colours[] = {{180, 119, 31}, {14, 127, 255},  {44, 160, 44},
 	                              {40, 39, 214},  {189, 103, 148}, {75, 86, 140}};
 	const auto draw = [&](const std::vector<Eigen::Vector2d>& v, cv::Scalar c, int thick)
 	{

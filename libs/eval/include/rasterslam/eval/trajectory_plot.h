@@ -1,9 +1,9 @@
 // Trajectories seen from above: the ground truth and estimates aligned on it, as a PNG.
 #pragma once
 
-#include <opencv2/core.hpp>
 #include <rasterslam/eval/trajectory_metrics.h>
 
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
