@@ -245,17 +245,7 @@ struct Axis
 	{
 		if (!(maxV > minV))
 			maxV = minV + 1;  // flat data: still a readable axis
-		const double raw = (maxV - minV) / 5;
-		const double mag = std::pow(10.0, std::floor(std::log10(raw)));
-		step = 10 * mag;
-		for (const double m : {1.0, 2.0, 5.0})
-		{
-			if (m * mag >= raw)
-			{
-				step = m * mag;
-				break;
-			}
-		}
+		step = eval::niceStep(maxV - minV, 5);
 		lo = std::floor(minV / step) * step;
 		hi = std::ceil(maxV / step) * step;
 	}

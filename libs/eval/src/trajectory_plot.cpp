@@ -10,9 +10,6 @@
 
 namespace rasterslam::eval
 {
-namespace
-{
-/** A grid step of 1, 2 or 5 times a power of ten giving about `lines` lines over `span`. */
 double niceStep(double span, double lines)
 {
 	const double raw = std::max(span, 1e-9) / lines;
@@ -23,6 +20,8 @@ double niceStep(double span, double lines)
 	return 10 * mag;
 }
 
+namespace
+{
 std::string numberText(double v)
 {
 	char buf[32];

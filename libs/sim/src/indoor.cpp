@@ -9,23 +9,13 @@
 #include <stdexcept>
 #include <string>
 
+#include "rng.h"
+
 namespace rasterslam::sim
 {
 namespace
 {
-class Rng
-{
-   public:
-	explicit Rng(std::uint32_t seed) : gen_(seed) {}
-	double uniform(double lo, double hi)
-	{
-		return lo + (hi - lo) * (static_cast<double>(gen_()) / 4294967296.0);
-	}
-	int integer(int lo, int hi) { return lo + static_cast<int>(uniform(0, hi - lo + 1 - 1e-9)); }
-
-   private:
-	std::mt19937 gen_;
-};
+using detail::Rng;
 
 void need(bool ok, const std::string& what)
 {

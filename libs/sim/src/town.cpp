@@ -8,27 +8,15 @@
 #include <stdexcept>
 #include <string>
 
+#include "rng.h"
+
 namespace rasterslam::sim
 {
 namespace
 {
 constexpr double kPi = 3.14159265358979323846;
 
-class Rng
-{
-   public:
-	explicit Rng(std::uint32_t seed) : gen_(seed) {}
-	// Drawn from raw 32-bit outputs: std::uniform_real_distribution's algorithm is not fixed by
-	// the standard, this keeps a seed's town identical across standard libraries.
-	double uniform(double lo, double hi)
-	{
-		return lo + (hi - lo) * (static_cast<double>(gen_()) / 4294967296.0);
-	}
-	bool chance(double p) { return uniform(0, 1) < p; }
-
-   private:
-	std::mt19937 gen_;
-};
+using detail::Rng;
 
 GroundModel makeGround(const TownParams& p, Rng& rng)
 {

@@ -26,6 +26,9 @@ cv::Mat renderTrajectoryPlot(const std::vector<Eigen::Vector2d>& groundTruth,
 PlottedTrajectory alignedForPlot(const Trajectory& est, const Association& a,
                                  const Eigen::Isometry3d& T_gt_est, const std::string& label);
 
+/** A plot's grid step: 1, 2 or 5 times a power of ten, about `lines` steps over `span`. */
+double niceStep(double span, double lines);
+
 /** Writes a PNG under a temporary name and renames it; throws naming the file on failure. */
 void writePng(const std::string& path, const cv::Mat& img);
 
