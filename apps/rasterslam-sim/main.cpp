@@ -6,8 +6,10 @@
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/io/trajectory_io.h>
 #include <rasterslam/sim/cloud_world.h>
+#include <rasterslam/sim/revisits.h>
 #include <rasterslam/sim/simulator.h>
 
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -35,6 +37,10 @@ struct Args
 	std::optional<long long> scans, seed;
 	std::optional<std::string> lidar;
 	int compress = 0;
+	// revisit truth against earlier sessions
+	std::vector<std::string> revisitsOf;
+	std::string revisits;
+	double revisitRadius_m = 5;
 };
 
 void checkWritable(const std::string& path)
@@ -169,6 +175,21 @@ int run(const Args& args)
 	checkWritable(args.out);
 	if (!args.gtTum.empty())
 		checkWritable(args.gtTum);
+	std::vector<io::Trajectory> earlier;
+	std::vector<std::string> earlierNames;
+	if (!args.revisits.empty())
+	{
+		checkWritable(args.revisits);
+		for (const auto& f : args.revisitsOf)
+		{
+			earlier.push_back(io::loadTrajectory(f));
+			std::string name = std::filesystem::path(f).stem().string();
+			for (char& ch : name)
+				if (std::isspace(static_cast<unsigned char>(ch)))
+					ch = '_';
+			earlierNames.push_back(name.empty() ? "session" : name);
+		}
+	}
 
 	const auto t0 = std::chrono::steady_clock::now();
 	const sim::Simulator simulator = sim::Simulator::fromScenario(sc);
@@ -178,6 +199,13 @@ int run(const Args& args)
 	          << " shapes, route " << simulator.route().length() << " m ("
 	          << simulator.route().length() / sc.speed_mps << " s a lap), " << sc.scans << " "
 	          << sc.lidar << " scans at " << sc.rate_hz << " Hz, seed " << sc.seed << "\n";
+	if (sc.changes.epoch > 0)
+		std::cerr << "  epoch " << sc.changes.epoch << ": " << simulator.world().changes().size()
+		          << " changes since epoch 0 (parked cars, walls, facades, furniture), vegetation "
+		             "grown\n";
+	if (!simulator.traffic().empty())
+		std::cerr << "  moving: " << sc.traffic.cars << " cars, " << sc.traffic.pedestrians
+		          << " people\n";
 
 	io::RawlogWriter writer(args.out, args.compress);
 	io::Trajectory gt;
@@ -210,6 +238,14 @@ int run(const Args& args)
 	    std::chrono::duration<double>(std::chrono::steady_clock::now() - tStart).count();
 	if (!args.gtTum.empty())
 		io::saveTrajectoryTum(args.gtTum, gt);
+	std::size_t nRevisits = 0;
+	if (!args.revisits.empty())
+	{
+		const auto rv = sim::findRevisits(gt, earlier, args.revisitRadius_m);
+		io::writeFileAtomically(args.revisits,
+		                        sim::formatRevisits(rv, earlierNames, args.revisitRadius_m));
+		nRevisits = rv.size();
+	}
 
 	const auto bytes = std::filesystem::file_size(args.out);
 	std::printf(
@@ -219,6 +255,10 @@ int run(const Args& args)
 	    tWorld, elapsed, sc.scans / elapsed);
 	if (!args.gtTum.empty())
 		std::printf("ground truth: %s\n", args.gtTum.c_str());
+	if (!args.revisits.empty())
+		std::printf("revisits: %zu of %zu scans within %.1f m of %zu earlier session(s): %s\n",
+		            nRevisits, sc.scans, args.revisitRadius_m, earlier.size(),
+		            args.revisits.c_str());
 	return 0;
 }
 }  // namespace
@@ -286,6 +326,25 @@ int main(int argc, char** argv)
 	app.add_option("--gt-tum", args.gtTum,
 	               "also write the ground truth as TUM (t x y z qx qy qz qw)")
 	    ->type_name("FILE");
+	auto* revisitsOf =
+	    app.add_option("--revisits-of", args.revisitsOf,
+	                   "ground truth (TUM or KITTI) of an earlier session in the same world; "
+	                   "repeat for several")
+	        ->check(CLI::ExistingFile.description(""))
+	        ->type_name("FILE")
+	        ->excludes(kitti);
+	auto* revisits =
+	    app.add_option("--revisits", args.revisits,
+	                   "write which scans revisit the earlier sessions' places: scan, stamp, "
+	                   "session, its nearest scan there, distance, heading difference")
+	        ->type_name("FILE")
+	        ->needs(revisitsOf);
+	revisitsOf->needs(revisits);
+	app.add_option("--revisit-radius", args.revisitRadius_m,
+	               "--revisits: a scan revisits a place within this distance (default 5 m)")
+	    ->check(CLI::Range(0.01, 1e6).description(""))
+	    ->type_name("M")
+	    ->needs(revisits);
 	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
 		return rc;
 	if (args.scenario.empty() && args.kitti.empty())

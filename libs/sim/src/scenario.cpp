@@ -189,6 +189,20 @@ Scenario loadScenario(const std::string& path)
 	    {"dropout_prob", num(nz.dropout_prob)},
 	    {"intensity_sigma", num(nz.intensity_sigma)}};
 
+	TrafficParams& tr = sc.traffic;
+	const std::map<std::string, Reader::Handler> trafficKeys = {
+	    {"cars", intIn(tr.cars, 0, 10000)},
+	    {"pedestrians", intIn(tr.pedestrians, 0, 10000)},
+	    {"car_speed_mps", num(tr.car_speed_mps)},
+	    {"walk_speed_mps", num(tr.walk_speed_mps)}};
+	ChangeParams& ch = sc.changes;
+	const std::map<std::string, Reader::Handler> changeKeys = {
+	    {"parked_cars", num(ch.parked_cars)},
+	    {"walls", num(ch.walls)},
+	    {"facades", num(ch.facades)},
+	    {"vegetation_growth", num(ch.vegetation_growth)},
+	    {"furniture", num(ch.furniture)}};
+
 	const std::map<std::string, Reader::Handler> topKeys = {
 	    {"seed", [&](const Node& n, const std::string& k)
 	     { sc.seed = static_cast<std::uint32_t>(r.integer(n, k, 0, 0xFFFFFFFFll)); }},
@@ -224,7 +238,10 @@ Scenario loadScenario(const std::string& path)
 	    {"world", [&](const Node& n, const std::string& k) { sc.world = r.text(n, k); }},
 	    {"indoor", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, indoorKeys); }},
 	    {"handheld", [&](const Node& n, const std::string& k) { sc.handheld = r.boolean(n, k); }},
-	    {"noise", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, noiseKeys); }}};
+	    {"noise", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, noiseKeys); }},
+	    {"traffic", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, trafficKeys); }},
+	    {"epoch", intIn(ch.epoch, 0, 10000)},
+	    {"changes", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, changeKeys); }}};
 
 	if (!doc.isNullNode())
 		r.forEachKey(doc.node(), "", topKeys);
@@ -297,6 +314,23 @@ void validateScenario(const Scenario& sc)
 	need(t.cars_per_100m >= 0, "town.cars_per_100m", "expected >= 0");
 	need(t.max_slope >= 0 && t.max_slope <= 0.15, "town.max_slope", "expected in [0, 0.15]");
 	need(t.outskirts_m >= 0, "town.outskirts_m", "expected >= 0");
+	const TrafficParams& tr = sc.traffic;
+	need(tr.cars >= 0 && tr.cars <= 10000, "traffic.cars", "expected in 0..10000");
+	need(tr.pedestrians >= 0 && tr.pedestrians <= 10000, "traffic.pedestrians",
+	     "expected in 0..10000");
+	need(tr.cars == 0 || sc.world == "town", "traffic.cars", "cars drive in the town only");
+	need(tr.car_speed_mps > 0 && tr.car_speed_mps <= 40, "traffic.car_speed_mps",
+	     "expected in (0, 40]");
+	need(tr.walk_speed_mps > 0 && tr.walk_speed_mps <= 40, "traffic.walk_speed_mps",
+	     "expected in (0, 40]");
+	const ChangeParams& ch = sc.changes;
+	need(ch.epoch >= 0 && ch.epoch <= 10000, "epoch", "expected in 0..10000");
+	need(ch.parked_cars >= 0 && ch.parked_cars <= 1, "changes.parked_cars", "expected in [0, 1]");
+	need(ch.walls >= 0 && ch.walls <= 1, "changes.walls", "expected in [0, 1]");
+	need(ch.facades >= 0 && ch.facades <= 1, "changes.facades", "expected in [0, 1]");
+	need(ch.vegetation_growth >= 0 && ch.vegetation_growth <= 1, "changes.vegetation_growth",
+	     "expected in [0, 1]");
+	need(ch.furniture >= 0 && ch.furniture <= 1, "changes.furniture", "expected in [0, 1]");
 }
 
 }  // namespace rasterslam::sim

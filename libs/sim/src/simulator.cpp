@@ -40,9 +40,10 @@ Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route
 
 Simulator Simulator::fromScenario(const Scenario& sc)
 {
-	auto world = std::make_shared<const World>(sc.world == "indoor"
-	                                               ? World::generateIndoor(sc.indoor, sc.seed)
-	                                               : World::generate(sc.town, sc.seed));
+	const bool indoor = sc.world == "indoor";
+	auto world =
+	    std::make_shared<const World>(indoor ? World::generateIndoor(sc.indoor, sc.seed, sc.changes)
+	                                         : World::generate(sc.town, sc.seed, sc.changes));
 	std::vector<Eigen::Vector2d> wp;
 	if (sc.route.pattern == "room_tour")
 		wp = Route::roomTour(sc.indoor);
@@ -69,8 +70,12 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	o.handheld = sc.handheld;
 	o.sweep.startAzimuth_deg = sc.sweep_start_azimuth_deg;
 	o.sweep.clockwise = sc.sweep_clockwise;
-	return Simulator(std::move(world), LidarModel::byName(sc.lidar),
-	                 Route(wp, sc.route.closed, sc.route.turn_radius_m), o);
+	Simulator sim(std::move(world), LidarModel::byName(sc.lidar),
+	              Route(wp, sc.route.closed, sc.route.turn_radius_m), o);
+	if (sc.traffic.cars > 0 || sc.traffic.pedestrians > 0)
+		sim.setTraffic(indoor ? Traffic::indoor(sc.indoor, sc.traffic, sc.seed)
+		                      : Traffic::town(sc.town, sc.traffic, sc.seed));
+	return sim;
 }
 
 double Simulator::stamp(std::size_t k) const
@@ -110,23 +115,26 @@ Scan Simulator::scan(std::size_t k) const
 	// Each azimuth from the pose of its instant: the sweep ends at the scan's stamp.
 	const int nAz = lidar_.azimuthSteps();
 	std::vector<mrpt::poses::CPose3D> columnPose(static_cast<std::size_t>(nAz));
+	std::vector<double> columnStamp(static_cast<std::size_t>(nAz));
 	const double period = 1.0 / opt_.rate_hz, end = stamp(k);
 	for (int a = 0; a < nAz; a++)
 	{
 		const double f = opt_.sweep.fraction(2 * 3.14159265358979323846 * a / nAz);
+		columnStamp[static_cast<std::size_t>(a)] = end - (1 - f) * period;
 		columnPose[static_cast<std::size_t>(a)] = sensorPoseAt(end - (1 - f) * period);
 	}
-	return cast(sensorPose(k), columnPose, k, end);
+	return cast(sensorPose(k), columnPose, columnStamp, k, end);
 }
 
 Scan Simulator::scanFrom(const mrpt::poses::CPose3D& T_world_sensor, std::size_t index,
                          double stampSec) const
 {
-	return cast(T_world_sensor, {}, index, stampSec);
+	return cast(T_world_sensor, {}, {}, index, stampSec);
 }
 
 Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
-                     const std::vector<mrpt::poses::CPose3D>& columnPose, std::size_t index,
+                     const std::vector<mrpt::poses::CPose3D>& columnPose,
+                     const std::vector<double>& columnStamp, std::size_t index,
                      double stampSec) const
 {
 	const int nBeams = lidar_.beamCount(), nAz = lidar_.azimuthSteps();
@@ -164,10 +172,39 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
 	const double res = opt_.point_resolution_m;
 	const auto quantize = [res](double v)
 	{ return static_cast<float>(res > 0 ? std::round(v / res) * res : v); };
+	// A mover, as it stands during one block of azimuths, with its bounding sphere.
+	struct Placed
+	{
+		Shape s;
+		Eigen::Vector3d centre;
+		double radius;
+	};
 	const auto work = [&]()
 	{
+		std::vector<Shape> moverShapes;
+		std::vector<Placed> movers;
 		for (int c = next++; c < nChunks; c = next++)
 		{
+			movers.clear();
+			if (!traffic_.empty())
+			{
+				const int mid = std::min(nAz - 1, c * kChunk + kChunk / 2);
+				const double t =
+				    (columnStamp.empty() ? stampSec : columnStamp[static_cast<std::size_t>(mid)]) -
+				    opt_.start_stamp_s;
+				const Eigen::Vector3d& o =
+				    colO[colR.size() == 1 ? 0 : static_cast<std::size_t>(mid)];
+				moverShapes.clear();
+				traffic_.shapesAt(t, world_->ground(), o, maxR, 1.0, moverShapes);
+				for (const Shape& s : moverShapes)
+				{
+					const double hz = (s.zmax - s.zmin) / 2;
+					const double r = s.type == ShapeType::Ellipsoid
+					                     ? std::max(s.a, s.b)
+					                     : std::hypot(s.footprintRadius(), hz);
+					movers.push_back({s, {s.cx, s.cy, s.zmin + hz}, r});
+				}
+			}
 			std::mt19937_64 rng(
 			    splitmix64(splitmix64(opt_.seed) ^ splitmix64(index * 0x100000001B3ull + c)));
 			std::normal_distribution<double> rangeNoise(0, 1), intensityNoise(0, 1);
@@ -184,7 +221,21 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
 				for (int b = 0; b < nBeams; b++)
 				{
 					const Eigen::Vector3d ds(ce[b] * ca[a], ce[b] * sa[a], se[b]);
-					const RayHit hit = world_->raycast(origin, R * ds, maxR);
+					const Eigen::Vector3d dw = R * ds;
+					RayHit hit = world_->raycast(origin, dw, maxR);
+					for (const Placed& m : movers)
+					{
+						const Eigen::Vector3d oc = m.centre - origin;
+						const double tc = oc.dot(dw);
+						if (tc < -m.radius || oc.squaredNorm() - tc * tc > m.radius * m.radius)
+							continue;
+						const double tm = intersectShape(m.s, origin, dw);
+						if (tm < hit.range && tm <= maxR)
+						{
+							hit.range = tm;
+							hit.kind = m.s.kind;
+						}
+					}
 					if (!hit.hit() || hit.range < minR)
 						continue;
 					if (nz.dropout_prob > 0 && unif(rng) < nz.dropout_prob)

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -17,6 +18,35 @@ namespace
 constexpr double kPi = 3.14159265358979323846;
 
 using detail::Rng;
+
+/** Kinds of changeable objects: each numbers its objects in the order the town is built. */
+enum Stream : std::uint32_t
+{
+	kSlot = 1,
+	kWall = 2,
+	kAnnex = 3,
+	kTree = 4
+};
+
+/** The changes between sessions, replayed for one world: every object asks, for each epoch
+ *  up to the world's, whether it changed then. */
+struct Epochs
+{
+	const ChangeParams& c;
+	std::uint32_t seed;
+	World& w;
+	std::uint64_t slots = 0, walls = 0, buildings = 0, trees = 0;
+
+	bool changes(Stream s, std::uint64_t id, int e, double rate) const
+	{
+		return rate > 0 && detail::eventDraw(seed, s, id, e) < rate;
+	}
+	Rng rng(Stream s, std::uint64_t id, int e) const { return detail::eventRng(seed, s, id, e); }
+	void record(int e, const char* what, const Eigen::Vector2d& where) const
+	{
+		w.recordChange({e, what, where});
+	}
+};
 
 GroundModel makeGround(const TownParams& p, Rng& rng)
 {
@@ -41,24 +71,49 @@ GroundModel makeGround(const TownParams& p, Rng& rng)
 	return GroundModel(0, tilt, hills);
 }
 
-void addTree(World& w, Rng& rng, double x, double y)
+void addTree(World& w, Rng& rng, Epochs& ep, double x, double y)
 {
 	const double trunkH = rng.uniform(2.2, 3.5);
 	w.addCylinderOnGround(x, y, rng.uniform(0.12, 0.25), trunkH + 0.5, ObjectKind::TreeTrunk);
 	const double rz = rng.uniform(1.5, 2.8);
-	w.addEllipsoidOnGround(x, y, trunkH, rng.uniform(1.3, 2.2), rz, ObjectKind::TreeCrown);
+	const double rxy = rng.uniform(1.3, 2.2);
+	// Grown since epoch 0: each tree at its own pace, each epoch a little differently.
+	const std::uint64_t id = ep.trees++;
+	double grown = 1;
+	for (int e = 1; e <= ep.c.epoch && ep.c.vegetation_growth > 0; e++)
+		grown *= 1 + ep.c.vegetation_growth * (0.5 + detail::eventDraw(ep.seed, kTree, id, e));
+	grown = std::min(grown, 1.8);
+	w.addEllipsoidOnGround(x, y, trunkH, grown * rxy, grown * rz, ObjectKind::TreeCrown);
 }
 
-void addCar(World& w, Rng& rng, double x, double y, double yaw)
+struct Car
+{
+	bool flip = false;
+	double len = 4.4, wid = 1.8, body = 1.0, shift = 0, cabin = 1.5;
+};
+
+Car drawCar(Rng& rng)
+{
+	Car c;
+	c.flip = !rng.chance(0.5);
+	c.len = rng.uniform(4.0, 4.8);
+	c.wid = rng.uniform(1.7, 1.9);
+	c.body = rng.uniform(0.9, 1.1);
+	c.shift = rng.uniform(-0.3, 0.1);
+	c.cabin = rng.uniform(1.4, 1.6);
+	return c;
+}
+
+void addCar(World& w, const Car& c, const Eigen::Vector2d& q, double yaw)
 {
 	// Body plus a narrower cabin: a box on the ground would hide the wheels' gap and the
 	// roof's shape that make cars recognisable in a scan.
-	const double len = rng.uniform(4.0, 4.8), wid = rng.uniform(1.7, 1.9);
+	if (c.flip)
+		yaw += kPi;
 	const double ca = std::cos(yaw), sa = std::sin(yaw);
-	w.addBoxOnGround(x, y, yaw, len / 2, wid / 2, rng.uniform(0.9, 1.1), ObjectKind::Car, 0.3);
-	const double shift = rng.uniform(-0.3, 0.1);
-	w.addBoxOnGround(x + shift * ca, y + shift * sa, yaw, len * 0.28, wid / 2 - 0.1,
-	                 rng.uniform(1.4, 1.6), ObjectKind::Car, 0.9);
+	w.addBoxOnGround(q.x(), q.y(), yaw, c.len / 2, c.wid / 2, c.body, ObjectKind::Car, 0.3);
+	w.addBoxOnGround(q.x() + c.shift * ca, q.y() + c.shift * sa, yaw, c.len * 0.28, c.wid / 2 - 0.1,
+	                 c.cabin, ObjectKind::Car, 0.9);
 }
 
 /** One side of a block: a frontage line from `a` along unit `u`, of length `len`; `inward`
@@ -71,7 +126,8 @@ struct Side
 	double yaw() const { return std::atan2(u.y(), u.x()); }
 };
 
-void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double reserved)
+void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& side,
+              double reserved)
 {
 	// Sidewalk furniture: poles at the kerb, trees a little further in.
 	const auto scatter = [&](double per100m, auto&& place)
@@ -92,19 +148,39 @@ void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double 
 	        [&](double s)
 	        {
 		        const auto q = side.at(s, std::min(1.8, 0.6 * p.sidewalk_m));
-		        addTree(w, rng, q.x(), q.y());
+		        addTree(w, rng, ep, q.x(), q.y());
 	        });
 
-	// Parked cars in the street, 1.1 m off the kerb, never in the intersections.
+	// Parked cars in the street, 1.1 m off the kerb, never in the intersections, one per 6 m
+	// slot. Between sessions a slot's car leaves, or another one parks, up to 0.5 m off.
 	if (p.cars_per_100m > 0)
 	{
 		const double occupancy = std::min(1.0, p.cars_per_100m * 6.0 / 100.0);
 		for (double s = 3.5; s < side.len - 3.5; s += 6.0)
 		{
-			if (!rng.chance(occupancy))
-				continue;
-			const auto q = side.at(s, -1.1);
-			addCar(w, rng, q.x(), q.y(), side.yaw() + (rng.chance(0.5) ? 0 : kPi));
+			const std::uint64_t id = ep.slots++;
+			std::optional<Car> car;
+			if (rng.chance(occupancy))
+				car = drawCar(rng);
+			double along = 0;
+			for (int e = 1; e <= ep.c.epoch; e++)
+			{
+				if (!ep.changes(kSlot, id, e, ep.c.parked_cars))
+					continue;
+				Rng er = ep.rng(kSlot, id, e);
+				if (car && er.chance(0.4))
+				{
+					ep.record(e, "car left", side.at(s + along, -1.1));
+					car.reset();
+					continue;
+				}
+				const bool had = car.has_value();
+				car = drawCar(er);
+				along = er.uniform(-0.5, 0.5);
+				ep.record(e, had ? "car moved" : "car parked", side.at(s + along, -1.1));
+			}
+			if (car)
+				addCar(w, *car, side.at(s + along, -1.1), side.yaw());
 		}
 	}
 
@@ -119,12 +195,24 @@ void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double 
 		if (rng.chance(0.2))
 		{
 			const double gap = std::min(rng.uniform(4, 10), end - s);
+			const std::uint64_t id = ep.walls++;
+			std::optional<double> wallHeight;
 			if (rng.chance(0.6))
+				wallHeight = rng.uniform(1.8, 2.8);
+			const auto q = side.at(s + gap / 2, setback + 0.15);
+			for (int e = 1; e <= ep.c.epoch; e++)
 			{
-				const auto q = side.at(s + gap / 2, setback + 0.15);
-				w.addBoxOnGround(q.x(), q.y(), side.yaw(), gap / 2, 0.15, rng.uniform(1.8, 2.8),
-				                 ObjectKind::Wall);
+				if (!ep.changes(kWall, id, e, ep.c.walls))
+					continue;
+				if (wallHeight)
+					wallHeight.reset();
+				else
+					wallHeight = ep.rng(kWall, id, e).uniform(1.8, 2.8);
+				ep.record(e, wallHeight ? "wall built" : "wall removed", q);
 			}
+			if (wallHeight)
+				w.addBoxOnGround(q.x(), q.y(), side.yaw(), gap / 2, 0.15, *wallHeight,
+				                 ObjectKind::Wall);
 			s += gap;
 			continue;
 		}
@@ -136,6 +224,27 @@ void fillSide(World& w, Rng& rng, const TownParams& p, const Side& side, double 
 		const auto q = side.at(s + width / 2, setback + depth / 2);
 		w.addBoxOnGround(q.x(), q.y(), side.yaw(), width / 2, depth / 2, height,
 		                 ObjectKind::Building);
+		// A facade that changes between sessions: an annex on the sidewalk in front of it (a
+		// shop front, scaffolding), built or pulled down.
+		const std::uint64_t id = ep.buildings++;
+		int builtAt = 0;
+		for (int e = 1; e <= ep.c.epoch; e++)
+		{
+			if (!ep.changes(kAnnex, id, e, ep.c.facades))
+				continue;
+			builtAt = builtAt > 0 ? 0 : e;
+			ep.record(e, builtAt > 0 ? "annex built" : "annex removed",
+			          side.at(s + width / 2, setback));
+		}
+		if (builtAt > 0)
+		{
+			Rng er = ep.rng(kAnnex, id, builtAt);
+			const double frac = er.uniform(0.4, 0.8), off = er.uniform(-0.5, 0.5) * (1 - frac);
+			const double d = std::min(1.0, 0.35 * setback);
+			const auto a = side.at(s + width / 2 + off * width, setback - d / 2);
+			w.addBoxOnGround(a.x(), a.y(), side.yaw(), frac * width / 2, d / 2,
+			                 er.uniform(2.6, 4.0), ObjectKind::Building);
+		}
 		s += width;
 	}
 }
@@ -147,7 +256,7 @@ void check(bool ok, const std::string& what)
 }
 }  // namespace
 
-World World::generate(const TownParams& p, std::uint32_t seed)
+World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParams& changes)
 {
 	check(p.blocks_x >= 1 && p.blocks_y >= 1, "blocks_x and blocks_y must be >= 1");
 	check(p.street_width_m >= 6, "street_width_m must be >= 6 (two lanes and parked cars)");
@@ -160,9 +269,16 @@ World World::generate(const TownParams& p, std::uint32_t seed)
 	check(p.hills >= 0 && p.hills <= 32, "hills must be in 0..32");
 	check(p.max_slope >= 0 && p.max_slope <= 0.15, "max_slope must be in [0, 0.15]");
 	check(p.outskirts_m >= 0, "outskirts_m must be >= 0");
+	check(changes.epoch >= 0 && changes.epoch <= 10000, "changes.epoch must be in 0..10000");
+	check(changes.parked_cars >= 0 && changes.parked_cars <= 1 && changes.walls >= 0 &&
+	          changes.walls <= 1 && changes.facades >= 0 && changes.facades <= 1,
+	      "change rates must be in [0, 1]");
+	check(changes.vegetation_growth >= 0 && changes.vegetation_growth <= 1,
+	      "vegetation_growth must be in [0, 1]");
 
 	Rng rng(seed);
 	World w(makeGround(p, rng), 4.0);
+	Epochs ep{changes, seed, w};
 	const double P = p.pitch(), hw = p.street_width_m / 2;
 	for (int bx = 0; bx < p.blocks_x; bx++)
 		for (int by = 0; by < p.blocks_y; by++)
@@ -175,11 +291,12 @@ World World::generate(const TownParams& p, std::uint32_t seed)
 			                       {{x0 + L, y0 + L}, {-1, 0}, {0, -1}, L},
 			                       {{x0, y0 + L}, {0, -1}, {1, 0}, L}};
 			for (int k = 0; k < 4; k++)
-				fillSide(w, rng, p, sides[k], k % 2 == 0 ? p.sidewalk_m : corner);
+				fillSide(w, rng, ep, p, sides[k], k % 2 == 0 ? p.sidewalk_m : corner);
 			// A courtyard tree or two.
 			const int n = rng.chance(0.5) ? 1 : 2;
 			for (int i = 0; i < n; i++)
-				addTree(w, rng, x0 + L * rng.uniform(0.45, 0.55), y0 + L * rng.uniform(0.4, 0.6));
+				addTree(w, rng, ep, x0 + L * rng.uniform(0.45, 0.55),
+				        y0 + L * rng.uniform(0.4, 0.6));
 		}
 
 	// Outskirts: a belt of trees and fences beyond the outer streets, so that the outer
@@ -210,7 +327,7 @@ World World::generate(const TownParams& p, std::uint32_t seed)
 				w.addBoxOnGround(q.x(), q.y(), rng.uniform(0, kPi), halfLen, 0.1,
 				                 rng.uniform(1.2, 2.0), ObjectKind::Wall);
 			else
-				addTree(w, rng, q.x(), q.y());
+				addTree(w, rng, ep, q.x(), q.y());
 		}
 	}
 	return w;

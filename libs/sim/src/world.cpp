@@ -211,8 +211,8 @@ void World::add(const Shape& s)
 	rebuildGrid(xmin - kGridMargin, ymin - kGridMargin, xmax + kGridMargin, ymax + kGridMargin);
 }
 
-void World::addBoxOnGround(double cx, double cy, double yaw, double halfLength, double halfWidth,
-                           double height, ObjectKind kind, double clearance)
+Shape boxOnGround(const GroundModel& g, double cx, double cy, double yaw, double halfLength,
+                  double halfWidth, double height, ObjectKind kind, double clearance)
 {
 	Shape s;
 	s.type = ShapeType::Box;
@@ -223,14 +223,15 @@ void World::addBoxOnGround(double cx, double cy, double yaw, double halfLength, 
 	s.b = halfWidth;
 	s.cosYaw = std::cos(yaw);
 	s.sinYaw = std::sin(yaw);
-	const double h = ground_.height(cx, cy);
-	const double sink = ground_.maxSlope() * s.footprintRadius();
+	const double h = g.height(cx, cy);
+	const double sink = g.maxSlope() * s.footprintRadius();
 	s.zmin = clearance > 0 ? h + clearance : h - sink;
 	s.zmax = h + height;
-	add(s);
+	return s;
 }
 
-void World::addCylinderOnGround(double cx, double cy, double radius, double height, ObjectKind kind)
+Shape cylinderOnGround(const GroundModel& g, double cx, double cy, double radius, double height,
+                       ObjectKind kind)
 {
 	Shape s;
 	s.type = ShapeType::Cylinder;
@@ -238,10 +239,21 @@ void World::addCylinderOnGround(double cx, double cy, double radius, double heig
 	s.cx = cx;
 	s.cy = cy;
 	s.a = radius;
-	const double h = ground_.height(cx, cy);
-	s.zmin = h - ground_.maxSlope() * radius;
+	const double h = g.height(cx, cy);
+	s.zmin = h - g.maxSlope() * radius;
 	s.zmax = h + height;
-	add(s);
+	return s;
+}
+
+void World::addBoxOnGround(double cx, double cy, double yaw, double halfLength, double halfWidth,
+                           double height, ObjectKind kind, double clearance)
+{
+	add(boxOnGround(ground_, cx, cy, yaw, halfLength, halfWidth, height, kind, clearance));
+}
+
+void World::addCylinderOnGround(double cx, double cy, double radius, double height, ObjectKind kind)
+{
+	add(cylinderOnGround(ground_, cx, cy, radius, height, kind));
 }
 
 void World::addEllipsoidOnGround(double cx, double cy, double bottom, double radiusXY,

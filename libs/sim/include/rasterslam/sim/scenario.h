@@ -1,6 +1,7 @@
 // A simulation scenario as read from a YAML file (rawlogs/*.yaml; keys in rawlogs/README.md).
 #pragma once
 
+#include <rasterslam/sim/traffic.h>
 #include <rasterslam/sim/world.h>
 
 #include <Eigen/Core>
@@ -63,6 +64,11 @@ struct Scenario
 	RouteParams route;
 	TownParams town;
 	NoiseParams noise;
+	/** Cars and people moving during the run. */
+	TrafficParams traffic;
+	/** The world's epoch (top-level key `epoch`: the sessions before this one changed it that
+	 *  many times) and the rates of change (key `changes`). */
+	ChangeParams changes;
 };
 
 /** Reads a scenario. Missing keys keep their defaults; an unknown key, a value of the wrong

@@ -7,6 +7,7 @@
 #include <rasterslam/sim/lidar_model.h>
 #include <rasterslam/sim/route.h>
 #include <rasterslam/sim/scenario.h>
+#include <rasterslam/sim/traffic.h>
 #include <rasterslam/sim/world.h>
 
 #include <cstddef>
@@ -52,8 +53,15 @@ class Simulator
    public:
 	Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route route,
 	          SimulatorOptions opt);
-	/** Builds the town, the route and the LiDAR that the scenario describes. */
+	/** Builds the town (at the scenario's epoch), its traffic, the route and the LiDAR that the
+	 *  scenario describes. */
 	static Simulator fromScenario(const Scenario& sc);
+
+	/** Objects moving during the run; their time is the stamp minus start_stamp_s. A mover is
+	 *  drawn at the instant of each block of 64 azimuths (3 ms of a 10 Hz HDL-64E sweep), and
+	 *  never within 1 m of the sensor (it would drive through the vehicle). */
+	void setTraffic(Traffic t) { traffic_ = std::move(t); }
+	const Traffic& traffic() const { return traffic_; }
 
 	/** Scan k along the route, ground truth included. */
 	Scan scan(std::size_t k) const;
@@ -76,15 +84,16 @@ class Simulator
 	/** The pose `s` metres along the route, `t` seconds after the start (the hand's sway
 	 *  when handheld). */
 	mrpt::poses::CPose3D poseAfter(double s, double t) const;
-	/** Casts a sweep; column a (azimuth 2 pi a / steps) leaves from columnPose[a], or from
-	 *  T_world_sensor when columnPose is empty. */
+	/** Casts a sweep; column a (azimuth 2 pi a / steps) leaves from columnPose[a] at
+	 *  columnStamp[a], or from T_world_sensor at stampSec when they are empty. */
 	Scan cast(const mrpt::poses::CPose3D& T_world_sensor,
-	          const std::vector<mrpt::poses::CPose3D>& columnPose, std::size_t index,
-	          double stampSec) const;
+	          const std::vector<mrpt::poses::CPose3D>& columnPose,
+	          const std::vector<double>& columnStamp, std::size_t index, double stampSec) const;
 	std::shared_ptr<const World> world_;
 	LidarModel lidar_;
 	Route route_;
 	SimulatorOptions opt_;
+	Traffic traffic_;
 };
 
 }  // namespace rasterslam::sim

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
 
 namespace rasterslam::sim
@@ -131,6 +132,47 @@ struct IndoorParams
 	}
 };
 
+/** How the world changes between sessions. A session sees the world at its `epoch`: the
+ *  world as generated (epoch 0) plus every change of epochs 1..epoch, so a change made at
+ *  epoch e appears in every session of epoch >= e and in none before. Each rate is the
+ *  probability, per epoch, that one object of that kind changes; the draws are a hash of
+ *  (seed, object, epoch), apart from the draws that build the world, so epoch 0 is the same
+ *  world bit for bit whatever the rates. */
+struct ChangeParams
+{
+	int epoch = 0;
+	/** A kerb slot (6 m) changes: its car leaves, or another car parks there, a little further
+	 *  along and maybe facing the other way; an empty slot gains a car. */
+	double parked_cars = 0.3;
+	/** A wall or fence in a gap between buildings is built or pulled down. */
+	double walls = 0.05;
+	/** A building's front gains or loses an annex (a shop front, scaffolding) on the
+	 *  sidewalk. */
+	double facades = 0.05;
+	/** Tree crowns grow by this fraction per epoch (each tree 0.5..1.5 times it), up to 1.8
+	 *  times their first size. */
+	double vegetation_growth = 0.04;
+	/** Indoors: a piece of furniture is moved to another free spot of its room. */
+	double furniture = 0.2;
+};
+
+/** One change between sessions, as applied. */
+struct ChangeRecord
+{
+	int epoch = 0;
+	/** "car parked", "car left", "car moved", "wall built", "wall removed", "annex built",
+	 *  "annex removed", "furniture moved". Vegetation grows everywhere and is not listed. */
+	std::string what;
+	Eigen::Vector2d where = Eigen::Vector2d::Zero();
+};
+
+/** A shape standing on the ground at its centre (see World::addBoxOnGround), not added to any
+ *  world: the movers' shapes are built with these. */
+Shape boxOnGround(const GroundModel& g, double cx, double cy, double yaw, double halfLength,
+                  double halfWidth, double height, ObjectKind kind, double clearance = 0);
+Shape cylinderOnGround(const GroundModel& g, double cx, double cy, double radius, double height,
+                       ObjectKind kind);
+
 /** Ground plus shapes. Shapes are registered in a uniform XY grid so that a ray only tests
  *  the shapes of the cells it crosses. Adding shapes is not thread-safe; raycast() is. */
 class World
@@ -142,12 +184,14 @@ class World
 	 *  x = i * pitch (i = 0..blocks_x) and y = j * pitch (j = 0..blocks_y); streets are free
 	 *  of obstacles except cars parked at the kerbs. Throws std::invalid_argument on
 	 *  nonsensical parameters. */
-	static World generate(const TownParams& params, std::uint32_t seed);
+	static World generate(const TownParams& params, std::uint32_t seed,
+	                      const ChangeParams& changes = {});
 	/** The indoor world on a flat floor (z = 0): room (i, j) spans [i S, (i+1) S] x
 	 *  [j S, (j+1) S] (S = room_size_m); the lanes through the room centres and the doors are
 	 *  kept clear. Deterministic for (params, seed); throws std::invalid_argument on
 	 *  nonsensical parameters. */
-	static World generateIndoor(const IndoorParams& params, std::uint32_t seed);
+	static World generateIndoor(const IndoorParams& params, std::uint32_t seed,
+	                            const ChangeParams& changes = {});
 
 	/** Adds a shape as is (z extents absolute). */
 	void add(const Shape& s);
@@ -166,6 +210,10 @@ class World
 
 	const GroundModel& ground() const { return ground_; }
 	const std::vector<Shape>& shapes() const { return shapes_; }
+	/** The changes between sessions that made this world (generate() with an epoch > 0), in
+	 *  the order they were applied. */
+	const std::vector<ChangeRecord>& changes() const { return changes_; }
+	void recordChange(ChangeRecord c) { changes_.push_back(std::move(c)); }
 
    private:
 	void rebuildGrid(double xmin, double ymin, double xmax, double ymax);
@@ -177,6 +225,7 @@ class World
 	double x0_ = 0, y0_ = 0;
 	int nx_ = 0, ny_ = 0;
 	std::vector<std::vector<std::uint32_t>> cells_;
+	std::vector<ChangeRecord> changes_;
 };
 
 /** Ray-shape intersection: the first t > 0 on the surface (the exit point when the origin
