@@ -154,7 +154,7 @@ if [ "$mode" = full ]; then
     cp "$f" "$OUT/$n"
     plot "ms per scan and memory, $(basename "$(dirname "$f")")" "$n"
   done
-  section "Lifelong: ten sessions over one town" env BUILD="$BUILD" WORK="$work/sessions" bash "$here/scripts/benchmark-sessions.sh"
+  section "Lifelong: ten sessions over one town that changes" env BUILD="$BUILD" WORK="$work/sessions" bash "$here/scripts/benchmark-sessions.sh"
   section "Place recognition among distractors" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
     --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 22 --queries 10
   section "Map store: save and load of 1,000 local maps" "$bin/rasterslam-bench-map-store"

@@ -5,7 +5,13 @@
 # a drive in another town against that map. Per session: located or not, ATE in the common
 # frame (every session judged with session 1's alignment, so a wrong anchoring shows as
 # metres), peak resident memory, the map's memory in the run and its size on disk.
-# usage: scripts/benchmark-sessions.sh     (env: BUILD, WORK)
+# The world changes (the simulator's `epoch` and `traffic`): session n sees the town at epoch
+# n-1 (parked cars gone or moved, walls and shop fronts built or pulled down, trees grown), with
+# cars and people moving during each run; STATIC=1 drives the unchanging town instead. Each
+# session's revisit truth against the earlier ones is written beside it (sN.revisits.txt).
+# The pipeline is share/rasterslam/config/lifelong.yaml (CONFIG=slam: slam.yaml, whose images
+# keep every height).
+# usage: scripts/benchmark-sessions.sh     (env: BUILD, WORK, STATIC, CONFIG)
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 BUILD="${BUILD:-$here/build}"
@@ -17,9 +23,11 @@ mkdir -p "$WORK"
 yamlv() { sed -n "s/^ *$2: *\([-0-9.eE+a-z]*\).*/\1/p" "$1" | head -n1; }
 # A value of a rasterslam-eval --json object by its jq path: json "$j" .ate_rmse_m (empty for null).
 json() { jq -r "$2 // empty" <<<"$1"; }
-cfg="$WORK/slam.yaml"
+CONFIG="${CONFIG:-lifelong}"
+cfg="$WORK/$CONFIG.yaml"
 sed -e "s#vocabulary_file: ../vocab/#vocabulary_file: $here/share/rasterslam/vocab/#" \
-  "$here/share/rasterslam/config/slam.yaml" > "$cfg"
+  "$here/share/rasterslam/config/$CONFIG.yaml" > "$cfg"
+echo "config: share/rasterslam/config/$CONFIG.yaml; world: $([ "${STATIC:-0}" = 1 ] && echo static || echo "changing (session n at epoch n-1, 8 cars and 20 people moving)")"
 
 # The town of rawlogs/town-loop.yaml: 3 x 2 blocks of 50 m, streets every 64 m.
 town() {
@@ -30,6 +38,7 @@ town: {blocks_x: 3, blocks_y: 2, block_size_m: 50, street_width_m: 14, sidewalk_
 noise: {range_sigma_m: 0.02, dropout_prob: 0.02, intensity_sigma: 0.03}
 EOF
 }
+STATIC="${STATIC:-0}"
 # scenario N SEED LIDAR SCANS WAYPOINTS: one session's scenario file (stamps a day apart).
 scenario() {
   local f="$WORK/s$1.yaml"
@@ -41,6 +50,10 @@ scenario() {
     echo "speed_mps: 8"
     echo "start_stamp_s: $((1700000000 + 86400 * $1))"
     echo "route: {waypoints: $5, closed: true, turn_radius_m: 6}"
+    if [ "$STATIC" != 1 ]; then
+      echo "epoch: $(($1 - 1))"
+      echo "traffic: {cars: 8, pedestrians: 20}"
+    fi
     town
   } > "$f"
   echo "$f"
@@ -60,13 +73,20 @@ routes=(
 )
 map="$WORK/map"
 align=""
-printf '%-8s %-6s %6s %-8s %9s %9s %9s %10s %10s %9s\n' session lidar scans located hits ate_m \
-  peak_mb map_mem_mb map_disk_mb ms_scan
+printf '%-8s %-6s %6s %8s %9s %-8s %9s %9s %9s %10s %10s %9s\n' session lidar scans changes revisits \
+  located hits ate_m peak_mb map_mem_mb map_disk_mb ms_scan
+earlier=()
 for i in "${!routes[@]}"; do
   n=$((i + 1))
   read -r lidar scans wp <<<"${routes[$i]}"
   sc=$(scenario "$n" 42 "$lidar" "$scans" "$wp")
-  "$bin/rasterslam-sim" --scenario "$sc" -o "$WORK/s$n.rawlog" --compress 0 >/dev/null 2>&1
+  rev=()
+  [ ${#earlier[@]} -gt 0 ] && rev=("${earlier[@]}" --revisits "$WORK/s$n.revisits.txt")
+  simlog=$("$bin/rasterslam-sim" --scenario "$sc" -o "$WORK/s$n.rawlog" --compress 0 \
+    --gt-tum "$WORK/s$n.tum" "${rev[@]}" 2>&1)
+  changes=$(sed -n 's/.*epoch [0-9]*: \([0-9]*\) changes.*/\1/p' <<<"$simlog")
+  revisits=$(sed -n 's/^revisits: \([0-9]*\) of.*/\1/p' <<<"$simlog")
+  earlier+=(--revisits-of "$WORK/s$n.tum")
   out="$WORK/out$n"
   if [ "$n" = 1 ]; then
     "$bin/rasterslam" run --rawlog "$WORK/s$n.rawlog" --config "$cfg" --out "$out" --quiet --map-out "$map" >/dev/null
@@ -81,7 +101,8 @@ for i in "${!routes[@]}"; do
   fi
   j=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json --align "$align")
   located=$([ "$n" = 1 ] && echo origin || yamlv "$out/run.yaml" localized_in_prior_map)
-  printf '%-8s %-6s %6s %-8s %9s %9.3f %9.1f %10.2f %10.2f %9.2f\n' "$n" "$lidar" "$scans" "$located" \
+  printf '%-8s %-6s %6s %8s %9s %-8s %9s %9.3f %9.1f %10.2f %10.2f %9.2f\n' "$n" "$lidar" "$scans" \
+    "${changes:-0}" "${revisits:--}" "$located" \
     "$(yamlv "$out/run.yaml" prior_map_hits)" "$(json "$j" .ate_rmse_m)" "$(yamlv "$out/run.yaml" peak_rss_mb)" \
     "$(yamlv "$out/run.yaml" map_memory_mb)" "$(du -sm "$map" | cut -f1)" \
     "$(yamlv "$out/run.yaml" ms_per_scan_median)"
