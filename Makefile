@@ -3,6 +3,7 @@
 #   make test   installs what is missing, builds and runs the whole test suite
 #   make bench-quick / make bench   the benchmark report, bench/results/REPORT.md with plots
 #               (under 10 minutes / about an hour)
+#   make bench-repro   makes the quick report twice: every accuracy figure must repeat
 BUILD ?= build
 JOBS ?= $(shell nproc)
 DEMO_SCENARIO ?= rawlogs/town-loop.yaml
@@ -10,7 +11,7 @@ DEMO_RAWLOG ?= $(BUILD)/rawlogs/town-loop.rawlog
 DEMO_OUT ?= out/demo
 DEMO_CONFIG ?= slam
 
-.PHONY: all deps configure build demo test bench bench-quick clean
+.PHONY: all deps configure build demo test bench bench-quick bench-repro clean
 
 all: build
 
@@ -42,6 +43,9 @@ bench: build
 
 bench-quick: build
 	BUILD=$(BUILD) bash scripts/bench-report.sh --quick
+
+bench-repro: build
+	BUILD=$(BUILD) bash scripts/bench-repro.sh --quick
 
 clean:
 	rm -rf $(BUILD) out

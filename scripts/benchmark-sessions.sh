@@ -11,7 +11,9 @@
 # session's revisit truth against the earlier ones is written beside it (sN.revisits.txt).
 # The pipeline is share/rasterslam/config/lifelong.yaml (CONFIG=slam: slam.yaml, whose images
 # keep every height).
-# usage: scripts/benchmark-sessions.sh     (env: BUILD, WORK, STATIC, CONFIG)
+# LAPS=K makes every session K times longer (its route driven K times over): LAPS=4 is the
+# long lifelong scenario, about 21,000 scans over the ten sessions.
+# usage: scripts/benchmark-sessions.sh     (env: BUILD, WORK, STATIC, CONFIG, LAPS)
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 BUILD="${BUILD:-$here/build}"
@@ -39,6 +41,8 @@ noise: {range_sigma_m: 0.02, dropout_prob: 0.02, intensity_sigma: 0.03}
 EOF
 }
 STATIC="${STATIC:-0}"
+LAPS="${LAPS:-1}"
+[[ "$LAPS" =~ ^[1-9][0-9]*$ ]] || { echo "benchmark-sessions: LAPS must be a whole number >= 1" >&2; exit 2; }
 # scenario N SEED LIDAR SCANS WAYPOINTS: one session's scenario file (stamps a day apart).
 scenario() {
   local f="$WORK/s$1.yaml"
@@ -76,10 +80,17 @@ align=""
 printf '%-8s %-6s %6s %8s %9s %-8s %9s %9s %9s %10s %10s %9s\n' session lidar scans changes revisits \
   located hits ate_m peak_mb map_mem_mb map_disk_mb ms_scan
 earlier=()
+total_scans=0
+t_sim=0
+t_run=0
+now() { date +%s.%N; }
 for i in "${!routes[@]}"; do
   n=$((i + 1))
   read -r lidar scans wp <<<"${routes[$i]}"
+  scans=$((scans * LAPS))
+  total_scans=$((total_scans + scans))
   sc=$(scenario "$n" 42 "$lidar" "$scans" "$wp")
+  t0=$(now)
   rev=()
   [ ${#earlier[@]} -gt 0 ] && rev=("${earlier[@]}" --revisits "$WORK/s$n.revisits.txt")
   simlog=$("$bin/rasterslam-sim" --scenario "$sc" -o "$WORK/s$n.rawlog" --compress 0 \
@@ -87,6 +98,7 @@ for i in "${!routes[@]}"; do
   changes=$(sed -n 's/.*epoch [0-9]*: \([0-9]*\) changes.*/\1/p' <<<"$simlog")
   revisits=$(sed -n 's/^revisits: \([0-9]*\) of.*/\1/p' <<<"$simlog")
   earlier+=(--revisits-of "$WORK/s$n.tum")
+  t1=$(now)
   out="$WORK/out$n"
   if [ "$n" = 1 ]; then
     "$bin/rasterslam" run --rawlog "$WORK/s$n.rawlog" --config "$cfg" --out "$out" --quiet --map-out "$map" >/dev/null
@@ -94,6 +106,9 @@ for i in "${!routes[@]}"; do
     "$bin/rasterslam" run --rawlog "$WORK/s$n.rawlog" --config "$cfg" --out "$out" --quiet \
       --map-in "$map" --map-out "$map" --require-localization >/dev/null || true
   fi
+  t2=$(now)
+  t_sim=$(awk -v a="$t_sim" -v b="$t1" -v c="$t0" 'BEGIN { print a + b - c }')
+  t_run=$(awk -v a="$t_run" -v b="$t2" -v c="$t1" 'BEGIN { print a + b - c }')
   # Session 1 defines the map frame: its alignment to the world is every session's.
   if [ -z "$align" ]; then
     j=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json)
@@ -108,6 +123,9 @@ for i in "${!routes[@]}"; do
     "$(yamlv "$out/run.yaml" ms_per_scan_median)"
   rm -f "$WORK/s$n.rawlog"
 done
+
+printf 'all sessions: %d scans; simulated and written in %.0f s, processed in %.0f s (%.1f ms a scan)\n' \
+  "$total_scans" "$t_sim" "$t_run" "$(awk -v t="$t_run" -v n="$total_scans" 'BEGIN { print 1000 * t / n }')"
 
 # Another town (another seed), driven against the map: it must never be located.
 sc=$(scenario 11 7 hdl64 530 "[[0,0],[128,0],[128,64],[0,64]]")

@@ -361,3 +361,36 @@ TEST(BenchReport, SmokeReportIsComplete)
 	for (const auto& e : fs::directory_iterator(dir.path()))
 		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }
+
+// scripts/bench-repro.sh (make bench-repro) makes the report twice and compares every result
+// file and the report's accuracy columns: two runs give the same figures, timings aside.
+TEST(BenchReport, SmokeReportIsReproducible)
+{
+	const test::ScopedTempDir dir("bench-repro");
+	const std::string build = fs::path(RASTERSLAM_BIN_DIR).parent_path().string();
+	const auto r = test::runCommand("WORK=" + dir.path().string() + " BUILD=" + build + " bash " +
+	                                test::sourcePath("scripts/bench-repro.sh") + " --smoke");
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	std::smatch m;
+	ASSERT_TRUE(std::regex_search(
+	    r.output, m, std::regex("reproducible \\(smoke\\): ([0-9]+) result files identical")))
+	    << r.output;
+	// Four drives, two or more systems each: their trajectories are among the files compared.
+	EXPECT_GE(std::stoi(m[1].str()), 20) << r.output;
+	// The comparison catches a difference: one trajectory of the first run changed.
+	fs::path changed;
+	for (const auto& e : fs::recursive_directory_iterator(dir / "a/work"))
+		if (e.path().filename() == "trajectory.tum")
+		{
+			changed = e.path();
+			break;
+		}
+	ASSERT_FALSE(changed.empty());
+	std::ofstream(changed, std::ios::app) << "2000000000 0 0 0 0 0 0 1\n";
+	const auto again = test::runCommand("COMPARE_ONLY=1 WORK=" + dir.path().string() + " bash " +
+	                                    test::sourcePath("scripts/bench-repro.sh") + " --smoke");
+	EXPECT_EQ(again.exitCode, 1) << again.output;
+	EXPECT_NE(again.output.find("NOT reproducible"), std::string::npos) << again.output;
+	EXPECT_NE(again.output.find(fs::relative(changed, dir / "a/work").string()), std::string::npos)
+	    << again.output;
+}
