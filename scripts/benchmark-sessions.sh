@@ -94,7 +94,8 @@ for i in "${!routes[@]}"; do
   rev=()
   [ ${#earlier[@]} -gt 0 ] && rev=("${earlier[@]}" --revisits "$WORK/s$n.revisits.txt")
   simlog=$("$bin/rasterslam-sim" --scenario "$sc" -o "$WORK/s$n.rawlog" --compress 0 \
-    --gt-tum "$WORK/s$n.tum" "${rev[@]}" 2>&1)
+    --gt-tum "$WORK/s$n.tum" ${rev[@]+"${rev[@]}"} 2>&1) ||
+    { printf '%s\n' "$simlog" >&2; echo "benchmark-sessions: simulating session $n failed" >&2; exit 1; }
   changes=$(sed -n 's/.*epoch [0-9]*: \([0-9]*\) changes.*/\1/p' <<<"$simlog")
   revisits=$(sed -n 's/^revisits: \([0-9]*\) of.*/\1/p' <<<"$simlog")
   earlier+=(--revisits-of "$WORK/s$n.tum")

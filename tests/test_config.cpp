@@ -66,6 +66,9 @@ std::string shipped(const std::string& rel)
 }
 
 const char* kShipped[] = {"share/rasterslam/config/slam.yaml",
+                          "share/rasterslam/config/lifelong.yaml",
+                          "share/rasterslam/config/indoor.yaml",
+                          "share/rasterslam/config/gicp-indoor.yaml",
                           "share/rasterslam/config/tracking.yaml",
                           "share/rasterslam/config/gicp-baseline.yaml",
                           "examples/plugin-template/config/flat-ground.yaml"};

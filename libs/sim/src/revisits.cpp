@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <unordered_map>
 
 namespace rasterslam::sim
@@ -37,7 +38,13 @@ std::vector<Revisit> findRevisits(const io::Trajectory& session,
 	};
 	std::unordered_map<std::int64_t, std::vector<Ref>> grid;
 	const auto cellOf = [radius_m](double v)
-	{ return static_cast<long long>(std::floor(v / radius_m)); };
+	{
+		const double c = std::floor(v / radius_m);
+		if (!(std::abs(c) < 1e15))
+			throw std::invalid_argument("findRevisits: a pose too far out for the radius (" +
+			                            std::to_string(v) + " m)");
+		return static_cast<long long>(c);
+	};
 	for (std::size_t s = 0; s < earlier.size(); s++)
 		for (std::size_t k = 0; k < earlier[s].size(); k++)
 		{
@@ -52,7 +59,7 @@ std::vector<Revisit> findRevisits(const io::Trajectory& session,
 	{
 		const Eigen::Vector3d p = session[k].pose.translation();
 		if (!p.allFinite())
-			continue;
+			throw std::invalid_argument("findRevisits: a pose of the session is not finite");
 		const long long cx = cellOf(p.x()), cy = cellOf(p.y());
 		double best = std::numeric_limits<double>::infinity();
 		Ref bestRef{0, 0};

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <stdexcept>
 #include <thread>
@@ -73,8 +74,15 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	Simulator sim(std::move(world), LidarModel::byName(sc.lidar),
 	              Route(wp, sc.route.closed, sc.route.turn_radius_m), o);
 	if (sc.traffic.cars > 0 || sc.traffic.pedestrians > 0)
-		sim.setTraffic(indoor ? Traffic::indoor(sc.indoor, sc.traffic, sc.seed)
-		                      : Traffic::town(sc.town, sc.traffic, sc.seed));
+	{
+		// Each session its own traffic: the start stamp is mixed into the seed.
+		std::uint64_t stampBits = 0;
+		std::memcpy(&stampBits, &sc.start_stamp_s, sizeof stampBits);
+		const auto seed =
+		    static_cast<std::uint32_t>(splitmix64(sc.seed ^ splitmix64(stampBits)) >> 32);
+		sim.setTraffic(indoor ? Traffic::indoor(sc.indoor, sc.traffic, seed)
+		                      : Traffic::town(sc.town, sc.traffic, seed));
+	}
 	return sim;
 }
 

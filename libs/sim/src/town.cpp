@@ -295,8 +295,13 @@ World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParam
 			// A courtyard tree or two.
 			const int n = rng.chance(0.5) ? 1 : 2;
 			for (int i = 0; i < n; i++)
-				addTree(w, rng, ep, x0 + L * rng.uniform(0.45, 0.55),
-				        y0 + L * rng.uniform(0.4, 0.6));
+			{
+				// Drawn y first: the order GCC gave these draws when they were the arguments of
+				// one call (right to left), so the towns stay as they were.
+				const double ty = y0 + L * rng.uniform(0.4, 0.6);
+				const double tx = x0 + L * rng.uniform(0.45, 0.55);
+				addTree(w, rng, ep, tx, ty);
+			}
 		}
 
 	// Outskirts: a belt of trees and fences beyond the outer streets, so that the outer
@@ -324,8 +329,12 @@ World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParam
 			else
 				q = {xmin - depth, ymax - (s - 2 * (xmax - xmin) - (ymax - ymin))};
 			if (fence)
-				w.addBoxOnGround(q.x(), q.y(), rng.uniform(0, kPi), halfLen, 0.1,
-				                 rng.uniform(1.2, 2.0), ObjectKind::Wall);
+			{
+				// Height first, then yaw: as GCC drew them as one call's arguments.
+				const double height = rng.uniform(1.2, 2.0);
+				const double yaw = rng.uniform(0, kPi);
+				w.addBoxOnGround(q.x(), q.y(), yaw, halfLen, 0.1, height, ObjectKind::Wall);
+			}
 			else
 				addTree(w, rng, ep, q.x(), q.y());
 		}

@@ -146,9 +146,22 @@ void Traffic::shapesAt(double t, const GroundModel& ground, const Eigen::Vector3
 	{
 		const Mover& m = movers_[i];
 		const MoverState s = state(i, t);
+		const Eigen::Vector2d rel = sensor.head<2>() - s.position;
 		const double footprint = std::hypot(m.halfLength, m.halfWidth);
-		const double d = (s.position - sensor.head<2>()).norm();
-		if (d < footprint + keepOut || d > range + footprint)
+		if (rel.norm() > range + footprint)
+			continue;
+		// The sensor's distance to the mover's footprint (its box, or its circle).
+		double gap;
+		if (m.kind == ObjectKind::Car)
+		{
+			const double c = std::cos(s.yaw), sn = std::sin(s.yaw);
+			const double lx = std::abs(c * rel.x() + sn * rel.y()) - m.halfLength;
+			const double ly = std::abs(-sn * rel.x() + c * rel.y()) - m.halfWidth;
+			gap = std::hypot(std::max(lx, 0.0), std::max(ly, 0.0));
+		}
+		else
+			gap = rel.norm() - m.halfLength;
+		if (gap < keepOut)
 			continue;
 		const double x = s.position.x(), y = s.position.y();
 		if (m.kind == ObjectKind::Car)

@@ -59,7 +59,8 @@ class Simulator
 
 	/** Objects moving during the run; their time is the stamp minus start_stamp_s. A mover is
 	 *  drawn at the instant of each block of 64 azimuths (3 ms of a 10 Hz HDL-64E sweep), and
-	 *  never within 1 m of the sensor (it would drive through the vehicle). */
+	 *  not when its footprint comes within 1 m of the sensor (it would drive through the
+	 *  vehicle). */
 	void setTraffic(Traffic t) { traffic_ = std::move(t); }
 	const Traffic& traffic() const { return traffic_; }
 

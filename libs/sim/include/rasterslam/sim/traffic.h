@@ -15,8 +15,9 @@ namespace rasterslam::sim
 /** Moving objects of a scenario (all zero: a static world). */
 struct TrafficParams
 {
-	/** Cars driving the streets, in the lanes 3 m either side of the centre line (the route
-	 *  drives the centre line). */
+	/** Cars driving the streets, in the lanes either side of the centre line (3 m from it, or
+	 *  0.43 of the half street width in streets narrower than 14 m; the route drives the centre
+	 *  line). */
 	int cars = 0;
 	/** People walking: on the sidewalks in a town, across the rooms indoors. */
 	int pedestrians = 0;
@@ -50,7 +51,9 @@ class Traffic
 	explicit Traffic(std::vector<Mover> movers) : movers_(std::move(movers)) {}
 
 	/** Cars on the street lines of the town (the whole length of a street, both directions),
-	 *  people on the sidewalk of one side of a block. Deterministic for (params, seed); throws
+	 *  people on the sidewalk of one side of a block. Deterministic for (params, seed)
+	 *  (Simulator::fromScenario mixes the start stamp into the seed: each session its own
+	 *  traffic); throws
 	 *  std::invalid_argument on negative counts or speeds out of (0, 40] m/s. */
 	static Traffic town(const TownParams& town, const TrafficParams& p, std::uint32_t seed);
 	/** People walking across a room, 0.8 m off the lanes through the room centres (where a
@@ -59,10 +62,10 @@ class Traffic
 
 	/** Mover i at time t (seconds since the run's start; any real t). */
 	MoverState state(std::size_t i, double t) const;
-	/** The shapes of every mover at time t standing on `ground`, except those within `keepOut`
-	 *  metres (horizontally, beyond their own footprint) of `sensor`, and those farther than
-	 *  `range` from it: a mover is not drawn through the sensor (the vehicle or the person
-	 *  carrying it). Appends to `out`. */
+	/** The shapes of every mover at time t standing on `ground`, except those whose footprint
+	 *  (a car's box, a person's circle) comes within `keepOut` metres of `sensor` horizontally,
+	 *  and those farther than `range` from it: a mover is not drawn through the sensor (the
+	 *  vehicle or the person carrying it). Appends to `out`. */
 	void shapesAt(double t, const GroundModel& ground, const Eigen::Vector3d& sensor, double range,
 	              double keepOut, std::vector<Shape>& out) const;
 

@@ -134,7 +134,8 @@ struct IndoorParams
 
 /** How the world changes between sessions. A session sees the world at its `epoch`: the
  *  world as generated (epoch 0) plus every change of epochs 1..epoch, so a change made at
- *  epoch e appears in every session of epoch >= e and in none before. Each rate is the
+ *  epoch e appears in every session of epoch >= e (until a later change undoes it) and in
+ *  none before. Each rate is the
  *  probability, per epoch, that one object of that kind changes; the draws are a hash of
  *  (seed, object, epoch), apart from the draws that build the world, so epoch 0 is the same
  *  world bit for bit whatever the rates. */
