@@ -19,6 +19,7 @@
 #include <map>
 #include <set>
 
+#include "sim_test_support.h"
 #include "test_support.h"
 
 namespace
@@ -26,16 +27,6 @@ namespace
 using namespace rasterslam;
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180;
-
-sim::SimulatorOptions exactOptions()
-{
-	sim::SimulatorOptions o;
-	o.noise.range_sigma_m = 0;
-	o.noise.dropout_prob = 0;
-	o.noise.intensity_sigma = 0;
-	o.point_resolution_m = 0;
-	return o;
-}
 
 sim::Simulator makeSim(sim::World world, const sim::LidarModel& lidar, sim::SimulatorOptions o)
 {
@@ -120,7 +111,7 @@ TEST(SimLidarModel, ElevationsAndAzimuthsRecoveredFromPoints)
 		// Flat ground inside a closed room: every beam, even the upward ones, returns.
 		sim::World world;
 		world.add(box(-30, 30, -30, 30, -1, 15, sim::ObjectKind::Building));
-		const auto scan = makeSim(world, model, exactOptions())
+		const auto scan = makeSim(world, model, test::exactSimOptions())
 		                      .scanFrom(mrpt::poses::CPose3D(0, 0, 1.73, 0.3, 0, 0), 0, 0);
 		ASSERT_EQ(scan.points.size(), static_cast<std::size_t>(model.raysPerScan()));
 		std::map<int, int> perBeam;
@@ -148,7 +139,7 @@ TEST(SimRaycast, FlatGroundRangesAreExact)
 {
 	const auto model = sim::LidarModel::hdl64();
 	const double h = 1.73;
-	const auto scan = makeSim(sim::World(), model, exactOptions())
+	const auto scan = makeSim(sim::World(), model, test::exactSimOptions())
 	                      .scanFrom(mrpt::poses::CPose3D(5, -3, h, 1.0, 0, 0), 0, 0);
 	std::size_t expectedCount = 0;
 	for (const double e : model.elevationsDeg())
@@ -174,7 +165,7 @@ TEST(SimRaycast, FlatGroundRangesAreExact)
 TEST(SimRaycast, PointResolutionRoundsCoordinates)
 {
 	const auto model = sim::LidarModel::vlp16();
-	auto o = exactOptions();
+	auto o = test::exactSimOptions();
 	o.point_resolution_m = 1.0 / 1024;
 	o.noise.intensity_sigma = 0.05;
 	const auto scan =
@@ -201,7 +192,8 @@ TEST(SimRaycast, PointsLieOnSlopedGround)
 	EXPECT_LE(ground.maxSlope(), 0.2);
 	const sim::World world(ground);
 	const auto T = sim::sensorPoseOnGround(ground, {3, 4, 0.7}, 1.73);
-	const auto scan = makeSim(world, sim::LidarModel::hdl64(), exactOptions()).scanFrom(T, 0, 0);
+	const auto scan =
+	    makeSim(world, sim::LidarModel::hdl64(), test::exactSimOptions()).scanFrom(T, 0, 0);
 	EXPECT_GT(scan.points.size(), 40u * 2083u);
 	double worst = 0;
 	for (const auto& p : scan.points)
@@ -219,7 +211,7 @@ TEST(SimRaycast, WallAtKnownDistance)
 	const double h = 1.73, wallX = 10, halfY = 5, top = 3;
 	sim::World world;
 	world.add(box(wallX, wallX + 1, -halfY, halfY, -0.5, top, sim::ObjectKind::Wall));
-	const auto scan = makeSim(world, model, exactOptions())
+	const auto scan = makeSim(world, model, test::exactSimOptions())
 	                      .scanFrom(mrpt::poses::CPose3D(0, 0, h, 0, 0, 0), 0, 0);
 	// Rays that reach the plane x = wallX inside the wall's face before reaching the ground.
 	std::size_t expected = 0;
@@ -253,7 +245,7 @@ TEST(SimRaycast, PoleAndShapes)
 {
 	sim::World world;
 	world.addCylinderOnGround(8, 2, 0.3, 5, sim::ObjectKind::Pole);
-	const auto scan = makeSim(world, sim::LidarModel::hdl64(), exactOptions())
+	const auto scan = makeSim(world, sim::LidarModel::hdl64(), test::exactSimOptions())
 	                      .scanFrom(mrpt::poses::CPose3D(0, 0, 1.73, 0, 0, 0), 0, 0);
 	int onPole = 0;
 	for (const auto& p : scan.points)
@@ -287,8 +279,8 @@ TEST(SimNoise, DropoutRateAndRangeSigma)
 {
 	const auto model = sim::LidarModel::hdl64();
 	const mrpt::poses::CPose3D T(0, 0, 1.73, 0, 0, 0);
-	const auto clean = makeSim(sim::World(), model, exactOptions()).scanFrom(T, 0, 0);
-	auto o = exactOptions();
+	const auto clean = makeSim(sim::World(), model, test::exactSimOptions()).scanFrom(T, 0, 0);
+	auto o = test::exactSimOptions();
 	o.noise.dropout_prob = 0.1;
 	o.noise.range_sigma_m = 0.02;
 	const auto noisy = makeSim(sim::World(), model, o).scanFrom(T, 0, 0);
@@ -312,7 +304,7 @@ TEST(SimNoise, IntensityByKind)
 {
 	sim::World world;
 	world.add(box(6, 10, -1, 1, 0.3, 1.5, sim::ObjectKind::Car));
-	auto o = exactOptions();
+	auto o = test::exactSimOptions();
 	o.noise.intensity_sigma = 0.05;
 	const auto scan = makeSim(world, sim::LidarModel::hdl64(), o)
 	                      .scanFrom(mrpt::poses::CPose3D(0, 0, 1.73, 0, 0, 0), 0, 0);

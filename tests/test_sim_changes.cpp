@@ -11,21 +11,12 @@
 #include <map>
 #include <sstream>
 
+#include "sim_test_support.h"
 #include "test_support.h"
 
 namespace
 {
 using namespace rasterslam;
-
-sim::SimulatorOptions exactOptions()
-{
-	sim::SimulatorOptions o;
-	o.noise.range_sigma_m = 0;
-	o.noise.dropout_prob = 0;
-	o.noise.intensity_sigma = 0;
-	o.point_resolution_m = 0;
-	return o;
-}
 
 /** The intensity a point of this kind has without noise (8-bit, as the simulator rounds). */
 float exactIntensity(sim::ObjectKind k)
@@ -152,7 +143,7 @@ TEST(SimTraffic, MoversMoveAsSpecifiedAndAppearInTheScans)
 
 	// In the scans: each kind's points lie on its movers as they stand at the scan's time, and
 	// move with them.
-	auto o = exactOptions();
+	auto o = test::exactSimOptions();
 	sim::Simulator simulator(std::make_shared<const sim::World>(sim::World::generate(town, 11)),
 	                         sim::LidarModel::hdl64(), sim::Route(), o);
 	for (const std::size_t i : {std::size_t{0}, std::size_t{6}})  // a car, a person
@@ -312,7 +303,7 @@ TEST(SimChanges, AChangeAppearsOnlyInTheSessionsAfterIt)
 	const double dy = std::abs(q.y() - std::round(q.y() / P) * P);
 	const Eigen::Vector2d street = dx < dy ? Eigen::Vector2d(std::round(q.x() / P) * P, q.y())
 	                                       : Eigen::Vector2d(q.x(), std::round(q.y() / P) * P);
-	auto o = exactOptions();
+	auto o = test::exactSimOptions();
 	for (int e = 0; e <= 4; e++)
 	{
 		sim::Simulator simulator(std::make_shared<const sim::World>(worlds[e]),
@@ -486,24 +477,15 @@ TEST(SimRevisits, TruthAgreesWithThePoses)
 	// As text: a header, then one line per revisit that reads back.
 	const std::string text = sim::formatRevisits(rv, {"a"}, radius);
 	std::istringstream in(text);
-	std::string line;
-	std::size_t lines = 0;
-	while (std::getline(in, line))
+	const auto lines = test::parseRevisits(in);
+	ASSERT_EQ(lines.size(), rv.size());
+	for (std::size_t i = 0; i < lines.size(); i++)
 	{
-		if (line.empty() || line[0] == '#')
-			continue;
-		std::istringstream f(line);
-		std::size_t scan = 0, earlierScan = 0;
-		double stamp = 0, earlierStamp = 0, d = 0, yaw = 0;
-		std::string session;
-		ASSERT_TRUE(f >> scan >> stamp >> session >> earlierScan >> earlierStamp >> d >> yaw)
-		    << line;
-		EXPECT_EQ(session, "a");
-		EXPECT_EQ(scan, rv[lines].scan);
-		EXPECT_NEAR(d, rv[lines].distance_m, 1e-3);
-		lines++;
+		ASSERT_TRUE(lines[i].parsed) << lines[i].text;
+		EXPECT_EQ(lines[i].session, "a");
+		EXPECT_EQ(lines[i].scan, rv[i].scan);
+		EXPECT_NEAR(lines[i].distance_m, rv[i].distance_m, 1e-3);
 	}
-	EXPECT_EQ(lines, rv.size());
 	EXPECT_THROW(sim::findRevisits(tb, {ta}, 0), std::invalid_argument);
 }
 
@@ -534,26 +516,19 @@ TEST(SimRevisits, WrittenByTheSimulatorForEachSession)
 	EXPECT_NE(r2.output.find("revisits: 20 of 20 scans"), std::string::npos) << r2.output;
 	// The same route a day later: every scan at the place of the same scan of session 1.
 	std::ifstream in(rev);
-	std::string line;
-	std::size_t n = 0;
-	while (std::getline(in, line))
+	const auto lines = test::parseRevisits(in);
+	ASSERT_EQ(lines.size(), 20u);
+	for (std::size_t n = 0; n < lines.size(); n++)
 	{
-		if (line.empty() || line[0] == '#')
-			continue;
-		std::istringstream f(line);
-		std::size_t scan = 0, earlierScan = 0;
-		double stamp = 0, earlierStamp = 0, d = 1, yaw = 1;
-		std::string session;
-		ASSERT_TRUE(f >> scan >> stamp >> session >> earlierScan >> earlierStamp >> d >> yaw);
-		EXPECT_EQ(session, "s1");
-		EXPECT_EQ(scan, n);
-		EXPECT_EQ(earlierScan, n);
-		EXPECT_NEAR(stamp - earlierStamp, 86400, 1e-3);
-		EXPECT_NEAR(d, 0, 1e-3);
-		EXPECT_NEAR(yaw, 0, 0.01);
-		n++;
+		const auto& r = lines[n];
+		ASSERT_TRUE(r.parsed) << r.text;
+		EXPECT_EQ(r.session, "s1");
+		EXPECT_EQ(r.scan, n);
+		EXPECT_EQ(r.earlierScan, n);
+		EXPECT_NEAR(r.stamp - r.earlierStamp, 86400, 1e-3);
+		EXPECT_NEAR(r.distance_m, 0, 1e-3);
+		EXPECT_NEAR(r.yaw_deg, 0, 0.01);
 	}
-	EXPECT_EQ(n, 20u);
 
 	// Misuse: a clear error, nothing written.
 	const auto bad =

@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include "rng.h"
+
 namespace rasterslam::sim
 {
 namespace
@@ -18,13 +20,6 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 // the thread count.
 constexpr int kChunk = 64;
 
-std::uint64_t splitmix64(std::uint64_t x)
-{
-	x += 0x9E3779B97F4A7C15ull;
-	x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-	x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-	return x ^ (x >> 31);
-}
 }  // namespace
 
 Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route route,
@@ -79,7 +74,7 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 		std::uint64_t stampBits = 0;
 		std::memcpy(&stampBits, &sc.start_stamp_s, sizeof stampBits);
 		const auto seed =
-		    static_cast<std::uint32_t>(splitmix64(sc.seed ^ splitmix64(stampBits)) >> 32);
+		    static_cast<std::uint32_t>(detail::mix64(sc.seed ^ detail::mix64(stampBits)) >> 32);
 		sim.setTraffic(indoor ? Traffic::indoor(sc.indoor, sc.traffic, seed)
 		                      : Traffic::town(sc.town, sc.traffic, seed));
 	}
@@ -213,8 +208,8 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
 					movers.push_back({s, {s.cx, s.cy, s.zmin + hz}, r});
 				}
 			}
-			std::mt19937_64 rng(
-			    splitmix64(splitmix64(opt_.seed) ^ splitmix64(index * 0x100000001B3ull + c)));
+			std::mt19937_64 rng(detail::mix64(detail::mix64(opt_.seed) ^
+			                                  detail::mix64(index * 0x100000001B3ull + c)));
 			std::normal_distribution<double> rangeNoise(0, 1), intensityNoise(0, 1);
 			std::uniform_real_distribution<double> unif(0, 1);
 			auto& pts = out[c];
