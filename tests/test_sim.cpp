@@ -327,8 +327,8 @@ TEST(SimNoise, IntensityByKind)
 	}
 	ASSERT_GT(groundN, 1000);
 	ASSERT_GT(carN, 100);
-	EXPECT_NEAR(groundSum / groundN, 0.3, 0.01);
-	EXPECT_NEAR(carSum / carN, 0.8, 0.01);
+	EXPECT_NEAR(groundSum / groundN, 0.28, 0.01);
+	EXPECT_NEAR(carSum / carN, 0.22, 0.01);
 }
 
 TEST(SimSimulator, DeterministicForASeed)

@@ -67,6 +67,7 @@ Command addLoops(CLI::App& app);
 Command addLocalMaps(CLI::App& app);
 Command addTimings(CLI::App& app);
 Command addReloc(CLI::App& app);
+Command addScene(CLI::App& app);
 
 // ---- option checks (CLI11 validators: failures are usage errors, exit 2) ----
 

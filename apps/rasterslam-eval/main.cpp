@@ -1,5 +1,5 @@
 // rasterslam-eval: accuracy and cost metrics of SLAM outputs. Subcommands: traj, loops,
-// localmaps, timings, reloc.
+// localmaps, timings, reloc, scene.
 #include "cli.h"
 
 using namespace rasterslam_eval_cli;
@@ -10,8 +10,8 @@ int main(int argc, char** argv)
 	cli::configure(app);
 	app.require_subcommand(1);
 	// Add subcommands here.
-	const std::vector<Command> commands = {addTraj(app), addLoops(app), addLocalMaps(app),
-	                                       addTimings(app), addReloc(app)};
+	const std::vector<Command> commands = {addTraj(app),    addLoops(app), addLocalMaps(app),
+	                                       addTimings(app), addReloc(app), addScene(app)};
 	app.footer(std::string("rasterslam-eval COMMAND --help shows the options of a command.\n\n") +
 	           cli::exitCodesFooter());
 

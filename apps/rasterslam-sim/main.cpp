@@ -315,8 +315,8 @@ int main(int argc, char** argv)
 	app.add_option("--seed", args.seed, "override the scenario's seed (0 to 2^32 - 1)")
 	    ->check(CLI::Range(0LL, 0xFFFFFFFFLL).description(""))
 	    ->type_name("S");
-	app.add_option("--lidar", args.lidar, "override the LiDAR model: hdl64 | vlp16")
-	    ->check(CLI::IsMember({"hdl64", "vlp16"}).description(""))
+	app.add_option("--lidar", args.lidar, "override the LiDAR model: hdl64 | hdl64e | vlp16")
+	    ->check(CLI::IsMember({"hdl64", "hdl64e", "vlp16"}).description(""))
 	    ->type_name("NAME");
 	app.add_option("--compress", args.compress,
 	               "gzip level 0..9 (default 0: a plain file, which reads ~25x faster than gzip; "

@@ -137,6 +137,21 @@ LidarModel LidarModel::hdl64()
 	return LidarModel("hdl64", el, 2083, 1.0, 120.0);
 }
 
+LidarModel LidarModel::hdl64e()
+{
+	// MRPT's default HDL-64 calibration, vert_correction of lasers 0..63 in degrees, sorted.
+	std::vector<double> el = {
+	    -24.5551, -24.1468, -23.5492, -22.9659, -22.3575, -21.9758, -21.4907, -21.0636,
+	    -20.4286, -19.8919, -19.2472, -18.9229, -18.4289, -17.9638, -17.3684, -16.8012,
+	    -16.2738, -15.9062, -15.3849, -14.9266, -14.2905, -13.8056, -13.1632, -12.8296,
+	    -12.2940, -11.9133, -11.2952, -10.7536, -10.1760, -9.7443,  -9.3000,  -8.7745,
+	    -8.5626,  -8.2187,  -7.9432,  -7.5522,  -7.2297,  -6.8490,  -6.5602,  -6.1900,
+	    -5.8889,  -5.4830,  -5.1346,  -4.8091,  -4.5299,  -4.1573,  -3.8193,  -3.4693,
+	    -3.1191,  -2.7921,  -2.4882,  -2.0906,  -1.8098,  -1.4588,  -1.1427,  -0.7563,
+	    -0.4518,  -0.0888,  0.2040,   0.5905,   0.8950,   1.2931,   1.5623,   1.9601};
+	return LidarModel("hdl64e", el, 2083, 1.0, 120.0);
+}
+
 LidarModel LidarModel::vlp16()
 {
 	std::vector<double> el(16);
@@ -149,9 +164,11 @@ LidarModel LidarModel::byName(const std::string& name)
 {
 	if (name == "hdl64")
 		return hdl64();
+	if (name == "hdl64e")
+		return hdl64e();
 	if (name == "vlp16")
 		return vlp16();
-	throw std::invalid_argument("unknown lidar '" + name + "' (known: hdl64, vlp16)");
+	throw std::invalid_argument("unknown lidar '" + name + "' (known: hdl64, hdl64e, vlp16)");
 }
 
 }  // namespace rasterslam::sim

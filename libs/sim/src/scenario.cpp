@@ -150,7 +150,16 @@ Scenario loadScenario(const std::string& path)
 	    {"cars_per_100m", num(t.cars_per_100m)},
 	    {"hills", intIn(t.hills, 0, 32)},
 	    {"max_slope", num(t.max_slope)},
-	    {"outskirts_m", num(t.outskirts_m)}};
+	    {"outskirts_m", num(t.outskirts_m)},
+	    {"hedge_share", num(t.hedge_share)},
+	    {"signs_per_100m", num(t.signs_per_100m)},
+	    {"street_furniture_per_100m", num(t.street_furniture_per_100m)},
+	    {"facade_detail",
+	     [&](const Node& n, const std::string& k) { t.facade_detail = r.boolean(n, k); }},
+	    {"curb_m", num(t.curb_m)},
+	    {"van_share", num(t.van_share)},
+	    {"irregular_crowns",
+	     [&](const Node& n, const std::string& k) { t.irregular_crowns = r.boolean(n, k); }}};
 	IndoorParams& in = sc.indoor;
 	const std::map<std::string, Reader::Handler> indoorKeys = {
 	    {"rooms_x", intIn(in.rooms_x, 1, 20)},
@@ -187,7 +196,12 @@ Scenario loadScenario(const std::string& path)
 	const std::map<std::string, Reader::Handler> noiseKeys = {
 	    {"range_sigma_m", num(nz.range_sigma_m)},
 	    {"dropout_prob", num(nz.dropout_prob)},
-	    {"intensity_sigma", num(nz.intensity_sigma)}};
+	    {"intensity_sigma", num(nz.intensity_sigma)},
+	    {"foliage_depth_m", num(nz.foliage_depth_m)}};
+
+	const std::map<std::string, Reader::Handler> bodyKeys = {{"pitch_deg", num(sc.body_pitch_deg)},
+	                                                         {"roll_deg", num(sc.body_roll_deg)},
+	                                                         {"heave_m", num(sc.body_heave_m)}};
 
 	TrafficParams& tr = sc.traffic;
 	const std::map<std::string, Reader::Handler> trafficKeys = {
@@ -238,6 +252,7 @@ Scenario loadScenario(const std::string& path)
 	    {"world", [&](const Node& n, const std::string& k) { sc.world = r.text(n, k); }},
 	    {"indoor", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, indoorKeys); }},
 	    {"handheld", [&](const Node& n, const std::string& k) { sc.handheld = r.boolean(n, k); }},
+	    {"body", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, bodyKeys); }},
 	    {"noise", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, noiseKeys); }},
 	    {"traffic", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, trafficKeys); }},
 	    {"epoch", intIn(ch.epoch, 0, 10000)},
@@ -261,7 +276,8 @@ void validateScenario(const Scenario& sc)
 		if (!ok)
 			r.fail(key, what);
 	};
-	need(sc.lidar == "hdl64" || sc.lidar == "vlp16", "lidar", "expected hdl64 or vlp16");
+	need(sc.lidar == "hdl64" || sc.lidar == "hdl64e" || sc.lidar == "vlp16", "lidar",
+	     "expected hdl64, hdl64e or vlp16");
 	need(sc.scans >= 1, "scans", "expected >= 1");
 	need(sc.rate_hz > 0 && sc.rate_hz <= 100, "rate_hz", "expected in (0, 100]");
 	need(sc.speed_mps >= 0 && sc.speed_mps <= 50, "speed_mps", "expected in [0, 50]");
@@ -301,6 +317,11 @@ void validateScenario(const Scenario& sc)
 	     "expected in [0, 1]");
 	need(sc.noise.intensity_sigma >= 0 && sc.noise.intensity_sigma <= 1, "noise.intensity_sigma",
 	     "expected in [0, 1]");
+	need(sc.noise.foliage_depth_m >= 0 && sc.noise.foliage_depth_m <= 2, "noise.foliage_depth_m",
+	     "expected in [0, 2]");
+	need(sc.body_pitch_deg >= 0 && sc.body_pitch_deg <= 5, "body.pitch_deg", "expected in [0, 5]");
+	need(sc.body_roll_deg >= 0 && sc.body_roll_deg <= 5, "body.roll_deg", "expected in [0, 5]");
+	need(sc.body_heave_m >= 0 && sc.body_heave_m <= 0.2, "body.heave_m", "expected in [0, 0.2]");
 	const TownParams& t = sc.town;
 	need(t.block_size_m >= 2 * t.sidewalk_m + 10, "town.block_size_m",
 	     "expected >= 2 * sidewalk_m + 10");
@@ -314,6 +335,11 @@ void validateScenario(const Scenario& sc)
 	need(t.cars_per_100m >= 0, "town.cars_per_100m", "expected >= 0");
 	need(t.max_slope >= 0 && t.max_slope <= 0.15, "town.max_slope", "expected in [0, 0.15]");
 	need(t.outskirts_m >= 0, "town.outskirts_m", "expected >= 0");
+	need(t.hedge_share >= 0 && t.hedge_share <= 1, "town.hedge_share", "expected in [0, 1]");
+	need(t.signs_per_100m >= 0, "town.signs_per_100m", "expected >= 0");
+	need(t.street_furniture_per_100m >= 0, "town.street_furniture_per_100m", "expected >= 0");
+	need(t.curb_m >= 0 && t.curb_m <= 0.3, "town.curb_m", "expected in [0, 0.3]");
+	need(t.van_share >= 0 && t.van_share <= 1, "town.van_share", "expected in [0, 1]");
 	const TrafficParams& tr = sc.traffic;
 	need(tr.cars >= 0 && tr.cars <= 10000, "traffic.cars", "expected in 0..10000");
 	need(tr.pedestrians >= 0 && tr.pedestrians <= 10000, "traffic.pedestrians",

@@ -64,6 +64,9 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	o.point_resolution_m = sc.point_resolution_m;
 	o.motion_within_sweep = sc.motion_within_sweep;
 	o.handheld = sc.handheld;
+	o.body_pitch_deg = sc.body_pitch_deg;
+	o.body_roll_deg = sc.body_roll_deg;
+	o.body_heave_m = sc.body_heave_m;
 	o.sweep.startAzimuth_deg = sc.sweep_start_azimuth_deg;
 	o.sweep.clockwise = sc.sweep_clockwise;
 	Simulator sim(std::move(world), LidarModel::byName(sc.lidar),
@@ -88,7 +91,28 @@ double Simulator::stamp(std::size_t k) const
 
 mrpt::poses::CPose3D Simulator::poseAfter(double s, double t) const
 {
-	const auto P = sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
+	auto P = sensorPoseOnGround(world_->ground(), route_.at(s), opt_.sensor_height_m);
+	if (opt_.body_pitch_deg > 0 || opt_.body_roll_deg > 0 || opt_.body_heave_m > 0)
+	{
+		// Three sinusoids per axis, frequencies and phases from the seed.
+		constexpr double kTwoPi = 2 * 3.14159265358979323846;
+		const auto wave = [&](std::uint64_t axis)
+		{
+			double v = 0;
+			for (std::uint64_t i = 0; i < 3; i++)
+			{
+				const std::uint64_t h = detail::mix64(detail::mix64(opt_.seed) ^ (axis * 8 + i));
+				const double f = 0.6 + 1.9 * static_cast<double>(h >> 40) / 16777216.0;
+				const double ph = kTwoPi * static_cast<double>(h & 0xffffff) / 16777216.0;
+				v += std::sqrt(2.0 / 3.0) * std::sin(kTwoPi * f * t + ph);
+			}
+			return v;
+		};
+		constexpr double kD = kTwoPi / 360;
+		P = P + mrpt::poses::CPose3D(0, 0, opt_.body_heave_m * wave(1), 0,
+		                             opt_.body_pitch_deg * kD * wave(2),
+		                             opt_.body_roll_deg * kD * wave(3));
+	}
 	if (!opt_.handheld)
 		return P;
 	constexpr double kTwoPi = 2 * 3.14159265358979323846, kD = kTwoPi / 360;
@@ -246,6 +270,8 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
 					double r = hit.range;
 					if (nz.range_sigma_m > 0)
 						r += nz.range_sigma_m * rangeNoise(rng);
+					if (nz.foliage_depth_m > 0 && hit.kind == ObjectKind::TreeCrown)
+						r += std::min(4.0, -std::log(1 - unif(rng))) * nz.foliage_depth_m;
 					if (r < minR || r > maxR)
 						continue;
 					double inten = nominalIntensity(hit.kind);

@@ -25,7 +25,8 @@ enum Stream : std::uint32_t
 	kSlot = 1,
 	kWall = 2,
 	kAnnex = 3,
-	kTree = 4
+	kTree = 4,
+	kVehicle = 5
 };
 
 /** The changes between sessions, replayed for one world: every object asks, for each epoch
@@ -71,7 +72,15 @@ GroundModel makeGround(const TownParams& p, Rng& rng)
 	return GroundModel(0, tilt, hills);
 }
 
-void addTree(World& w, Rng& rng, Epochs& ep, double x, double y)
+/** The detail of a realistic street (TownParams::detailed()): its own random stream, so the
+ *  town's layout does not depend on it. Null when the town has none. */
+struct Detail
+{
+	const TownParams& p;
+	Rng rng;
+};
+
+void addTree(World& w, Rng& rng, Epochs& ep, double x, double y, Detail* detail = nullptr)
 {
 	const double trunkH = rng.uniform(2.2, 3.5);
 	w.addCylinderOnGround(x, y, rng.uniform(0.12, 0.25), trunkH + 0.5, ObjectKind::TreeTrunk);
@@ -84,13 +93,56 @@ void addTree(World& w, Rng& rng, Epochs& ep, double x, double y)
 		grown *= 1 + ep.c.vegetation_growth * (0.5 + detail::eventDraw(ep.seed, kTree, id, e));
 	grown = std::min(grown, 1.8);
 	w.addEllipsoidOnGround(x, y, trunkH, grown * rxy, grown * rz, ObjectKind::TreeCrown);
+	// Lobes: a crown is no ellipsoid; two to four smaller ones around it, some lower.
+	if (detail && detail->p.irregular_crowns)
+	{
+		Rng& d = detail->rng;
+		const int lobes = d.integer(2, 4);
+		for (int i = 0; i < lobes; i++)
+		{
+			const double az = d.uniform(0, 2 * kPi), off = grown * rxy * d.uniform(0.4, 0.8);
+			const double r = grown * rxy * d.uniform(0.45, 0.7);
+			w.addEllipsoidOnGround(x + off * std::cos(az), y + off * std::sin(az),
+			                       trunkH + grown * rz * d.uniform(-0.3, 0.6), r,
+			                       r * d.uniform(0.7, 1.2), ObjectKind::TreeCrown);
+		}
+	}
 }
 
 struct Car
 {
+	enum class Type
+	{
+		Car,
+		Suv,
+		Van
+	};
+	Type type = Type::Car;
 	bool flip = false;
 	double len = 4.4, wid = 1.8, body = 1.0, shift = 0, cabin = 1.5;
 };
+
+/** Makes a drawn car a van or an SUV, from the slot's own draw (TownParams::van_share). */
+void reshape(Car& c, double u, Rng&& d)
+{
+	if (u >= 1)
+		return;
+	if (u < 0.5)
+	{
+		c.type = Car::Type::Van;
+		c.len = d.uniform(4.8, 5.6);
+		c.wid = d.uniform(1.9, 2.05);
+		c.cabin = d.uniform(1.9, 2.4);
+	}
+	else
+	{
+		c.type = Car::Type::Suv;
+		c.len = d.uniform(4.3, 4.9);
+		c.wid = d.uniform(1.8, 1.95);
+		c.body = d.uniform(1.15, 1.3);
+		c.cabin = d.uniform(1.65, 1.85);
+	}
+}
 
 Car drawCar(Rng& rng)
 {
@@ -111,6 +163,17 @@ void addCar(World& w, const Car& c, const Eigen::Vector2d& q, double yaw)
 	if (c.flip)
 		yaw += kPi;
 	const double ca = std::cos(yaw), sa = std::sin(yaw);
+	if (c.type == Car::Type::Van)
+	{
+		// A tall box behind a short bonnet.
+		const double bonnet = 0.9;
+		w.addBoxOnGround(q.x() - bonnet / 2 * ca, q.y() - bonnet / 2 * sa, yaw,
+		                 (c.len - bonnet) / 2, c.wid / 2, c.cabin, ObjectKind::Car, 0.3);
+		const double f = (c.len - bonnet) / 2;
+		w.addBoxOnGround(q.x() + f * ca, q.y() + f * sa, yaw, bonnet / 2, c.wid / 2 - 0.05, 1.05,
+		                 ObjectKind::Car, 0.3);
+		return;
+	}
 	w.addBoxOnGround(q.x(), q.y(), yaw, c.len / 2, c.wid / 2, c.body, ObjectKind::Car, 0.3);
 	w.addBoxOnGround(q.x() + c.shift * ca, q.y() + c.shift * sa, yaw, c.len * 0.28, c.wid / 2 - 0.1,
 	                 c.cabin, ObjectKind::Car, 0.9);
@@ -126,18 +189,131 @@ struct Side
 	double yaw() const { return std::atan2(u.y(), u.x()); }
 };
 
-void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& side,
-              double reserved)
+/** Places objects about every 100 / per100m metres along a side of length `len`, 2 m clear of
+ *  its ends: the first at (firstMin..1) spacings, each moved by up to +-jitter spacings. */
+template <typename Place>
+void scatterAlong(Rng& rng, double len, double per100m, double firstMin, double jitter,
+                  Place&& place)
 {
+	if (per100m <= 0)
+		return;
+	const double spacing = 100.0 / per100m;
+	for (double s = rng.uniform(firstMin, 1.0) * spacing; s < len - 2; s += spacing)
+		place(std::clamp(s + rng.uniform(-jitter, jitter) * spacing, 2.0, len - 2));
+}
+
+/** Hedges, kerb, signs and street furniture along a side: drawn from the detail stream. */
+void detailSide(World& w, Detail& dt, const Side& side)
+{
+	const TownParams& p = dt.p;
+	Rng& d = dt.rng;
+	const double yaw = side.yaw();
+	// The raised sidewalk, in 2 m slabs so that each follows the ground's slope.
+	if (p.curb_m > 0)
+		for (double s = 0; s < side.len - 1e-9; s += 2)
+		{
+			const double len = std::min(2.0, side.len - s);
+			const auto q = side.at(s + len / 2, p.sidewalk_m / 2);
+			w.addBoxOnGround(q.x(), q.y(), yaw, len / 2, p.sidewalk_m / 2, p.curb_m,
+			                 ObjectKind::Ground);
+		}
+	// Hedges at the back of the sidewalk, in pieces of uneven height and line.
+	if (p.hedge_share > 0)
+	{
+		const double meanHedge = 7.5, meanGap = meanHedge * (1 - p.hedge_share) / p.hedge_share;
+		double s = d.uniform(0, 2 * meanGap + 1);
+		while (s < side.len - 2)
+		{
+			const double end = std::min(side.len - 1, s + d.uniform(3, 12));
+			const double depth = std::min(p.sidewalk_m, 3.5) - d.uniform(0.5, 0.8);
+			const double half = d.uniform(0.3, 0.5), base = d.uniform(0.9, 1.8);
+			for (double a = s; a < end; a += 1.5)
+			{
+				const double len = std::min(1.5, end - a) + 0.1;
+				const auto q = side.at(a + len / 2, depth + d.uniform(-0.12, 0.12));
+				w.addBoxOnGround(q.x(), q.y(), yaw, len / 2, half, base + d.uniform(-0.25, 0.25),
+				                 ObjectKind::TreeCrown);
+			}
+			s = end + d.uniform(0.3, 1.7) * meanGap + 0.5;
+		}
+	}
+	const auto scatter = [&](double per100m, auto&& place)
+	{ scatterAlong(d, side.len, per100m, 0.2, 0.3, place); };
+	scatter(p.signs_per_100m,
+	        [&](double s)
+	        {
+		        const auto q = side.at(s, 0.35);
+		        const double h = d.uniform(2.2, 2.8);
+		        w.addCylinderOnGround(q.x(), q.y(), 0.04, h, ObjectKind::Pole);
+		        // The panel faces the street, across the post.
+		        const auto f = side.at(s, 0.3);
+		        const double size = d.uniform(0.3, 0.45);
+		        w.addBoxOnGround(f.x(), f.y(), yaw, size, 0.02, h, ObjectKind::Pole, h - 2 * size);
+	        });
+	scatter(p.street_furniture_per_100m,
+	        [&](double s)
+	        {
+		        const double u = d.uniform(0, 1);
+		        if (u < 0.4)  // a bollard
+		        {
+			        const auto q = side.at(s, 0.3);
+			        w.addCylinderOnGround(q.x(), q.y(), 0.08, d.uniform(0.8, 1.0),
+			                              ObjectKind::Pole);
+		        }
+		        else if (u < 0.75)  // a bin
+		        {
+			        const auto q = side.at(s, d.uniform(0.5, 1.0));
+			        w.addBoxOnGround(q.x(), q.y(), yaw + d.uniform(-0.3, 0.3), 0.35, 0.35,
+			                         d.uniform(1.0, 1.3), ObjectKind::Wall);
+		        }
+		        else  // a bench
+		        {
+			        const auto q = side.at(s, std::max(1.0, p.sidewalk_m - 1.2));
+			        w.addBoxOnGround(q.x(), q.y(), yaw, 0.9, 0.3, 0.8, ObjectKind::Wall, 0.4);
+		        }
+	        });
+}
+
+/** Piers between the windows of a facade (from s0 to s1 along the side, height h), entrance
+ *  steps, and now and then an awning over the ground floor. */
+void detailFacade(World& w, Detail& dt, const Side& side, double s0, double s1, double h)
+{
+	Rng& d = dt.rng;
+	const double setback = dt.p.sidewalk_m, yaw = side.yaw();
+	const double spacing = d.uniform(2.8, 4.5), pier = d.uniform(0.35, 0.6);
+	const double out = d.uniform(0.2, 0.45);
+	const double pierH = d.chance(0.5) ? h : std::min(h, d.uniform(3.5, 4.5));
+	for (double s = s0 + pier / 2; s <= s1 - pier / 2; s += spacing)
+	{
+		const auto q = side.at(s, setback - out / 2 + 0.05);
+		w.addBoxOnGround(q.x(), q.y(), yaw, pier / 2, out / 2 + 0.05, pierH, ObjectKind::Building);
+	}
+	const double width = s1 - s0;
+	const int doors = width > 14 ? 2 : 1;
+	for (int i = 0; i < doors; i++)
+	{
+		const double s = s0 + width * (i + d.uniform(0.25, 0.75)) / doors;
+		const auto q = side.at(s, setback - 0.45);
+		w.addBoxOnGround(q.x(), q.y(), yaw, d.uniform(0.7, 1.2), 0.45, d.uniform(0.25, 0.6),
+		                 ObjectKind::Building);
+	}
+	if (d.chance(0.3))
+	{
+		const double frac = d.uniform(0.3, 0.8), depth = d.uniform(0.8, 1.5);
+		const auto q = side.at(s0 + width / 2, setback - depth / 2);
+		w.addBoxOnGround(q.x(), q.y(), yaw, frac * width / 2, depth / 2, 3.0, ObjectKind::Building,
+		                 d.uniform(2.4, 2.8));
+	}
+}
+
+void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& side,
+              double reserved, Detail* detail)
+{
+	if (detail)
+		detailSide(w, *detail, side);
 	// Sidewalk furniture: poles at the kerb, trees a little further in.
 	const auto scatter = [&](double per100m, auto&& place)
-	{
-		if (per100m <= 0)
-			return;
-		const double spacing = 100.0 / per100m;
-		for (double s = rng.uniform(0.3, 1.0) * spacing; s < side.len - 2; s += spacing)
-			place(std::clamp(s + rng.uniform(-0.2, 0.2) * spacing, 2.0, side.len - 2));
-	};
+	{ scatterAlong(rng, side.len, per100m, 0.3, 0.2, place); };
 	scatter(p.poles_per_100m,
 	        [&](double s)
 	        {
@@ -148,7 +324,7 @@ void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& s
 	        [&](double s)
 	        {
 		        const auto q = side.at(s, std::min(1.8, 0.6 * p.sidewalk_m));
-		        addTree(w, rng, ep, q.x(), q.y());
+		        addTree(w, rng, ep, q.x(), q.y(), detail);
 	        });
 
 	// Parked cars in the street, 1.1 m off the kerb, never in the intersections, one per 6 m
@@ -163,6 +339,7 @@ void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& s
 			if (rng.chance(occupancy))
 				car = drawCar(rng);
 			double along = 0;
+			int lastParked = 0;
 			for (int e = 1; e <= ep.c.epoch; e++)
 			{
 				if (!ep.changes(kSlot, id, e, ep.c.parked_cars))
@@ -177,10 +354,22 @@ void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& s
 				const bool had = car.has_value();
 				car = drawCar(er);
 				along = er.uniform(-0.5, 0.5);
+				lastParked = e;
 				ep.record(e, had ? "car moved" : "car parked", side.at(s + along, -1.1));
 			}
 			if (car)
+			{
+				// The body type is the slot's own draw: the same car stays a van after the
+				// sessions that did not move it.
+				if (detail && p.van_share > 0)
+				{
+					const int e = lastParked;
+					const double u = detail::eventDraw(ep.seed, kVehicle, id, e);
+					reshape(*car, u < p.van_share ? u / p.van_share : 1,
+					        detail::eventRng(ep.seed, kVehicle, id, e));
+				}
 				addCar(w, *car, side.at(s + along, -1.1), side.yaw());
+			}
 		}
 	}
 
@@ -224,6 +413,8 @@ void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& s
 		const auto q = side.at(s + width / 2, setback + depth / 2);
 		w.addBoxOnGround(q.x(), q.y(), side.yaw(), width / 2, depth / 2, height,
 		                 ObjectKind::Building);
+		if (detail && p.facade_detail)
+			detailFacade(w, *detail, side, s, s + width, height);
 		// A facade that changes between sessions: an annex on the sidewalk in front of it (a
 		// shop front, scaffolding), built or pulled down.
 		const std::uint64_t id = ep.buildings++;
@@ -279,6 +470,11 @@ World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParam
 	Rng rng(seed);
 	World w(makeGround(p, rng), 4.0);
 	Epochs ep{changes, seed, w};
+	std::optional<Detail> detail;
+	if (p.detailed())
+		detail.emplace(
+		    Detail{p, Rng(static_cast<std::uint32_t>(detail::mix64(seed ^ 0xde7a11ull)))});
+	Detail* dt = detail ? &*detail : nullptr;
 	const double P = p.pitch(), hw = p.street_width_m / 2;
 	for (int bx = 0; bx < p.blocks_x; bx++)
 		for (int by = 0; by < p.blocks_y; by++)
@@ -291,7 +487,7 @@ World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParam
 			                       {{x0 + L, y0 + L}, {-1, 0}, {0, -1}, L},
 			                       {{x0, y0 + L}, {0, -1}, {1, 0}, L}};
 			for (int k = 0; k < 4; k++)
-				fillSide(w, rng, ep, p, sides[k], k % 2 == 0 ? p.sidewalk_m : corner);
+				fillSide(w, rng, ep, p, sides[k], k % 2 == 0 ? p.sidewalk_m : corner, dt);
 			// A courtyard tree or two.
 			const int n = rng.chance(0.5) ? 1 : 2;
 			for (int i = 0; i < n; i++)
@@ -300,7 +496,7 @@ World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParam
 				// one call (right to left), so the towns stay as they were.
 				const double ty = y0 + L * rng.uniform(0.4, 0.6);
 				const double tx = x0 + L * rng.uniform(0.45, 0.55);
-				addTree(w, rng, ep, tx, ty);
+				addTree(w, rng, ep, tx, ty, dt);
 			}
 		}
 
@@ -336,7 +532,7 @@ World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParam
 				w.addBoxOnGround(q.x(), q.y(), yaw, halfLen, 0.1, height, ObjectKind::Wall);
 			}
 			else
-				addTree(w, rng, ep, q.x(), q.y());
+				addTree(w, rng, ep, q.x(), q.y(), dt);
 		}
 	}
 	return w;

@@ -136,25 +136,25 @@ float nominalIntensity(ObjectKind k)
 	switch (k)
 	{
 		case ObjectKind::Ground:
-			return 0.3f;
+			return 0.28f;
 		case ObjectKind::Building:
-			return 0.5f;
+			return 0.34f;
 		case ObjectKind::Wall:
-			return 0.45f;
+			return 0.31f;
 		case ObjectKind::Car:
-			return 0.8f;
+			return 0.22f;
 		case ObjectKind::Pole:
-			return 0.65f;
-		case ObjectKind::TreeTrunk:
-			return 0.25f;
-		case ObjectKind::TreeCrown:
-			return 0.2f;
-		case ObjectKind::Furniture:
 			return 0.55f;
+		case ObjectKind::TreeTrunk:
+			return 0.26f;
+		case ObjectKind::TreeCrown:
+			return 0.3f;
+		case ObjectKind::Furniture:
+			return 0.45f;
 		case ObjectKind::Person:
-			return 0.35f;
+			return 0.38f;
 		case ObjectKind::Ceiling:
-			return 0.6f;
+			return 0.5f;
 		case ObjectKind::None:
 			break;
 	}

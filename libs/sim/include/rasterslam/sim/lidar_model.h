@@ -19,6 +19,14 @@ class LidarModel
 	 *  1..120 m. The real sensor's beams are not evenly spaced (two laser blocks with
 	 *  different pitches); here they are, which keeps the span and count right. */
 	static LidarModel hdl64();
+	/** Velodyne HDL-64E with the beam elevations of MRPT's default HDL-64 calibration
+	 *  (`VelodyneCalibration::LoadDefaultCalibration("HDL64")`, its `vert_correction`s): an
+	 *  upper block of 32 beams from -8.56 to +1.96 deg (about 1/3 deg apart) and a lower block
+	 *  of 32 from -24.56 to -8.77 deg (about 1/2 deg). Fewer beams reach the ground near the
+	 *  vehicle than with hdl64()'s even spread, as on the real sensor. The table is kept here
+	 *  because MRPT 2.5 (Debian 12) fails to load that calibration: its YAML loader reads the
+	 *  embedded text as a file name. Same steps and ranges as hdl64(). */
+	static LidarModel hdl64e();
 	/** Velodyne VLP-16: 16 beams -15..+15 deg every 2 deg, 1800 steps (0.2 deg), 1..100 m. */
 	static LidarModel vlp16();
 	/** The beams of a real sensor measured from one of its scans, when the scan stores its
@@ -31,7 +39,7 @@ class LidarModel
 	static LidarModel fromRingOrderedScan(const std::string& name,
 	                                      const std::vector<PointXYZI>& scan, int azimuthSteps,
 	                                      double minRange_m, double maxRange_m);
-	/** "hdl64" or "vlp16"; throws std::invalid_argument listing both otherwise. */
+	/** "hdl64", "hdl64e" or "vlp16"; throws std::invalid_argument listing them otherwise. */
 	static LidarModel byName(const std::string& name);
 
 	const std::string& name() const { return name_; }

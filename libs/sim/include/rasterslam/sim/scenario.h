@@ -20,6 +20,9 @@ struct NoiseParams
 	double dropout_prob = 0.02;
 	/** Standard deviation of the Gaussian noise on the intensity (clamped to [0,1]). */
 	double intensity_sigma = 0.03;
+	/** Foliage lets light in: a return from a crown or hedge comes from this far inside it
+	 *  on average (an exponential depth, at most 4 times this; 0: from its surface). */
+	double foliage_depth_m = 0;
 };
 
 struct RouteParams
@@ -40,7 +43,7 @@ struct Scenario
 	/** The file it came from, for messages. */
 	std::string source;
 	std::uint32_t seed = 1;
-	/** "hdl64" or "vlp16". */
+	/** "hdl64", "hdl64e" (the beams of MRPT's HDL-64 calibration) or "vlp16". */
 	std::string lidar = "hdl64";
 	std::size_t scans = 300;
 	double rate_hz = 10;
@@ -57,6 +60,9 @@ struct Scenario
 	/** The sensor carried by hand: it sways in yaw, pitch and roll and bobs with the steps
 	 *  (see SimulatorOptions::handheld). */
 	bool handheld = false;
+	/** The vehicle's body rocking on its suspension (see SimulatorOptions::body_pitch_deg):
+	 *  scenario key `body: {pitch_deg, roll_deg, heave_m}`. */
+	double body_pitch_deg = 0, body_roll_deg = 0, body_heave_m = 0;
 	/** Each azimuth cast from the pose of its instant (see SimulatorOptions). */
 	bool motion_within_sweep = false;
 	double sweep_start_azimuth_deg = 180;

@@ -42,6 +42,12 @@ struct SimulatorOptions
 	 *  pitch (3 deg, 1.1 Hz) and roll (3 deg, 0.9 Hz) and bobs with the steps (2 cm, 1.8 Hz),
 	 *  as a function of the time since start_stamp_s. */
 	bool handheld = false;
+	/** A vehicle's body on its suspension: pitch, roll (degrees) and heave (m), each the sum
+	 *  of three sinusoids of 0.6..2.5 Hz drawn from the seed, with these RMS values (0: a
+	 *  body fixed to the route, as before). Real cars rock like this; without it a flat
+	 *  ground's rings fall on the same place scan after scan, which a scan matcher reads as
+	 *  standing still. */
+	double body_pitch_deg = 0, body_roll_deg = 0, body_heave_m = 0;
 };
 
 /** Scans are instantaneous unless SimulatorOptions::motion_within_sweep is set (then every

@@ -109,6 +109,28 @@ struct TownParams
 	/** Width of the belt of trees and fences around the town. */
 	double outskirts_m = 25;
 
+	// Detail for scenes like real streets (the KITTI sample's): all off by default, and each
+	// drawn from its own random stream, so the town's layout is the same with or without it.
+	/** Share of a block side's length lined with hedges at the back of the sidewalk. */
+	double hedge_share = 0;
+	/** Traffic signs (a post and a panel) at the kerb. */
+	double signs_per_100m = 0;
+	/** Bins, bollards and benches on the sidewalk. */
+	double street_furniture_per_100m = 0;
+	/** Facades with piers between the windows, entrance steps and some awnings. */
+	bool facade_detail = false;
+	/** Height of the kerb: the sidewalk stands this much above the street (0: level). */
+	double curb_m = 0;
+	/** Share of parked vehicles that are vans or SUVs rather than cars. */
+	double van_share = 0;
+	/** Crowns of several lobes rather than one ellipsoid. */
+	bool irregular_crowns = false;
+	bool detailed() const
+	{
+		return hedge_share > 0 || signs_per_100m > 0 || street_furniture_per_100m > 0 ||
+		       facade_detail || curb_m > 0 || van_share > 0 || irregular_crowns;
+	}
+
 	/** Distance between two parallel street centre lines. */
 	double pitch() const { return block_size_m + street_width_m; }
 };
