@@ -108,9 +108,9 @@ if [ -f "$t/kitti-vc0-tracking/trajectory.kitti" ]; then
     "$t/kitti-vc0-kiss/trajectory.kitti" KISS-ICP
   plot "KITTI 00 frames 0-100 against the SemanticKITTI poses" traj-kitti.png
 fi
-for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
+for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
   case "$scen" in
-    town-sweep) a=tracking+deskew b=gicp-baseline+deskew ;;
+    town-sweep|town-kitti) a=tracking+deskew b=gicp-baseline+deskew ;;
     indoor-handheld) a=indoor b=gicp-indoor ;;
     *) a=tracking b=gicp-baseline ;;
   esac

@@ -6,7 +6,10 @@
 # SemanticKITTI and the official poses, 10..80 m segments) and the two shipped simulated
 # drives (rawlogs/town-loop.yaml, HDL-64E; rawlogs/town-vlp16.yaml, VLP-16; town-sweep.yaml,
 # HDL-64E sweeps taken while moving, each config also with engine.deskew; indoor-handheld.yaml,
-# a VLP-16 carried through rooms, with the indoor configs instead of the given ones).
+# a VLP-16 carried through rooms, with the indoor configs instead of the given ones;
+# town-kitti.yaml, a street made to look like the KITTI sample, sweeps not de-skewed as
+# KITTI's: there GICP's and KISS-ICP's errors are set against their KITTI-sample errors, and
+# the scene statistics of both are printed side by side).
 #
 # KISS-ICP runs beside them on every input, on the same core, scored by the same evaluator:
 # it is built from the pinned sources of ../shared/anchors/kiss-icp into KISS_DIR (outside
@@ -113,6 +116,18 @@ rate_note() {  # speed ratio of the first config against the last
   awk -v a="$a" -v b="$b" -v n1="$3" -v n2="$4" 'BEGIN{printf "%s runs %.1f times the rate of %s (median ms/scan %.1f vs %.1f)\n", n1, b/a, n2, a, b}'
 }
 
+# Relative errors on the KITTI sample (raw scans) by config, for the realism check below.
+declare -A kitti_sem=()
+realism() {  # realism NAME SIM_JSON: the simulated street's errors against the KITTI sample's
+  local k="${kitti_sem[$1]:-}"
+  [ -n "$k" ] || return 0
+  awk -v n="$1" -v ts="$(json "$2" .rel_trans_pct)" -v tk="$(json "$k" .rel_trans_pct)" \
+      -v rs="$(json "$2" .rel_rot_deg_per_m)" -v rk="$(json "$k" .rel_rot_deg_per_m)" \
+      'BEGIN{if (ts == "" || tk == "" || tk == 0 || rk == 0) {printf "%s: no segment to compare\n", n; exit}
+             printf "%s here vs on the KITTI sample: RTE %.3f vs %.3f %% (%.2f x), RRE %.4f vs %.4f deg/m (%.2f x) (goal: within 2 x) %s\n",
+               n, ts, tk, ts/tk, rs, rk, rs/rk, (ts <= 2*tk && ts >= tk/2 && rs <= 2*rk && rs >= rk/2) ? "met" : "NOT MET"}'
+}
+
 # --- KITTI ---------------------------------------------------------------------------
 if [ -d "$DATA" ]; then
   for vc in 0 0.205; do
@@ -129,6 +144,7 @@ if [ -d "$DATA" ]; then
       off=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_official.txt" --calib "$DATA/calib.txt" --est "$out/trajectory.kitti" --segments 10:80:10 --json)
       row "$name" "$out" "$sem" "$off"
       outs+=("$out"); names+=("$name"); jsons+=("$sem")
+      [ "$vc" != 0 ] || kitti_sem["$name"]="$sem"
     done
     if [ -n "$kiss" ]; then
       kout="$WORK/kitti-vc$vc-kiss"
@@ -137,6 +153,7 @@ if [ -d "$DATA" ]; then
       ksem=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_semantickitti.txt" --calib "$DATA/calib.txt" --est "$kout/trajectory.kitti" --segments 10:80:10 --json)
       koff=$("$bin/rasterslam-eval" traj --gt "$DATA/poses_official.txt" --calib "$DATA/calib.txt" --est "$kout/trajectory.kitti" --segments 10:80:10 --json)
       kiss_row "$kout" "$ksem" "$koff"
+      [ "$vc" != 0 ] || kitti_sem[KISS-ICP]="$ksem"
     fi
     [ ${#outs[@]} -lt 2 ] || rate_note "${outs[0]}" "${outs[-1]}" "${names[0]}" "${names[-1]}"
     [ -z "$kiss" ] || kiss_ratio "${outs[0]}" "${jsons[0]}" "$kout" "$ksem" "${names[0]}"
@@ -147,24 +164,26 @@ else
 fi
 
 # --- Simulation --------------------------------------------------------------------------
+declare -A sim_sem=()
 # A config with engine.deskew on (for the drive whose sweeps are not de-skewed).
 with_deskew() {  # with_deskew CONFIG OUT
   if grep -q '^engine:' "$1"; then sed 's/^engine:.*/engine:\n  deskew: constant_velocity/' "$1" >"$2"
   else { cat "$1"; printf 'engine:\n  deskew: constant_velocity\n'; } >"$2"; fi
 }
 
-for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
+for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
   segs=50:200:50 kissopt=()
   case "$scen" in
     town-loop) n="$SIM_SCANS"; sim="$WORK/town-loop-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans" ;;
     town-vlp16) n="${SIM_LIMIT:-}"; sim="$WORK/$scen${n:+-$n}.rawlog"; what="${n:-400} VLP-16 scans" ;;
     town-sweep) n="$SIM_SCANS"; sim="$WORK/town-sweep-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans, motion within each sweep; +deskew: engine.deskew on" ;;
+    town-kitti) n="$SIM_SCANS"; sim="$WORK/town-kitti-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans (MRPT's HDL-64 beams) of a street like the KITTI sample's, slowing for corners, motion within each sweep; +deskew: engine.deskew on" ;;
     indoor-handheld) n="${SIM_LIMIT:-}"; sim="$WORK/$scen${n:+-$n}.rawlog"; what="${n:-450} VLP-16 scans carried by hand through rooms; the indoor configs"
       segs=10:40:10; kissopt=(--max-range 30 --min-range 0.5) ;;
   esac
   cfgs=("$@")
   [ "$scen" != indoor-handheld ] || cfgs=("$here/share/rasterslam/config/indoor.yaml" "$here/share/rasterslam/config/gicp-indoor.yaml")
-  if [ "$scen" = town-sweep ]; then
+  if [ "$scen" = town-sweep ] || [ "$scen" = town-kitti ]; then
     cfgs=()
     for cfg in "$@"; do
       d="$WORK/$(basename "$cfg" .yaml)+deskew.yaml"; with_deskew "$cfg" "$d"; cfgs+=("$cfg" "$d")
@@ -183,6 +202,7 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
     gt=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments "$segs" --json)
     row "$name" "$out" "$gt" ""
     outs+=("$out"); names+=("$name"); jsons+=("$gt")
+    [ "$scen" != town-kitti ] || sim_sem["$name"]="$gt"
   done
   if [ -n "$kiss" ]; then
     velo="$WORK/$scen-bin"
@@ -193,10 +213,22 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld; do
     run_kiss "$velo" "$kout" "${kissopt[@]}"
     kgt=$("$bin/rasterslam-eval" traj --gt "$velo/groundtruth.kitti" --est "$kout/trajectory.kitti" --segments "$segs" --json)
     kiss_row "$kout" "$kgt" ""
+    [ "$scen" != town-kitti ] || sim_sem[KISS-ICP]="$kgt"
   fi
-  ri=0; [ "$scen" != town-sweep ] || ri=1  # there: the first config with de-skewing
+  ri=0; [ "$scen" != town-sweep ] && [ "$scen" != town-kitti ] || ri=1  # there: the first config with de-skewing
   [ ${#outs[@]} -lt 2 ] || rate_note "${outs[$ri]}" "${outs[-1]}" "${names[$ri]}" "${names[-1]}"
   [ -z "$kiss" ] || kiss_ratio "${outs[$ri]}" "${jsons[$ri]}" "$kout" "$kgt" "${names[$ri]}"
+  if [ "$scen" = town-kitti ]; then
+    # Is the simulated street as hard as the real one? The same programs, as they run on the
+    # KITTI sample's raw scans (no de-skewing), within 2 x their errors there.
+    for name in "${!sim_sem[@]}"; do realism "$name" "${sim_sem[$name]}"; done | sort
+    if [ -d "$DATA" ]; then
+      echo
+      echo "Scene statistics (rasterslam-eval scene): the KITTI sample (every 5th scan), this street and the demo town (every 5th scan)"
+      "$bin/rasterslam-eval" scene "$DATA/velodyne" "$sim" "$WORK/town-loop-$SIM_SCANS.rawlog" \
+        --label KITTI --label town-kitti --label town-loop --every 5
+    fi
+  fi
   echo
 done
 echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark)"

@@ -431,6 +431,59 @@ TEST(SimRoute, FilletGeometry)
 	EXPECT_NEAR(lap.y, one.y, 1e-9);
 }
 
+TEST(SimRoute, SlowsForCornersWithinItsBounds)
+{
+	sim::TownParams t;
+	const double R = 6, vmax = 8, aLat = 2.5, aLon = 1.5;
+	const sim::Route route(sim::Route::blockLoop(t, 2, 1), true, R);
+	const auto world = std::make_shared<const sim::World>();  // flat: the sensor right above
+	sim::SimulatorOptions o;
+	o.speed_mps = vmax;
+	const sim::Simulator constant(world, sim::LidarModel::vlp16(), route, o);
+	// Off by default: speed_mps everywhere, the distance exactly speed * t.
+	for (double t0 : {0.0, 1.3, 47.0, 1000.5})
+		EXPECT_EQ(constant.distanceAt(t0), vmax * t0);
+	EXPECT_DOUBLE_EQ(constant.lapTime(), route.length() / vmax);
+
+	o.corner_accel_mps2 = aLat;
+	o.accel_mps2 = aLon;
+	const sim::Simulator slowing(world, sim::LidarModel::vlp16(), route, o);
+	const double lap = slowing.lapTime();
+	EXPECT_GT(lap, route.length() / vmax + 4 * 2 * (vmax - std::sqrt(aLat * R)) / aLon * 0.2);
+	EXPECT_NEAR(slowing.distanceAt(lap), route.length(), 1e-6);
+	EXPECT_NEAR(slowing.distanceAt(lap + 3.3), route.length() + slowing.distanceAt(3.3), 1e-6);
+	// Speed and acceleration from the distance every 0.1 s over a lap.
+	const double dt = 0.1, vCorner = std::sqrt(aLat * R);
+	double slowest = vmax, prevV = -1;
+	int onArcs = 0;
+	for (double t0 = 0; t0 + dt < lap; t0 += dt)
+	{
+		const double s0 = slowing.distanceAt(t0), s1 = slowing.distanceAt(t0 + dt);
+		const double v = (s1 - s0) / dt;
+		ASSERT_GT(v, 0) << t0;
+		ASSERT_LE(v, vmax + 1e-6) << t0;
+		if (route.curvatureAt(s0) > 0 && route.curvatureAt(s1) > 0)
+		{
+			onArcs++;
+			ASSERT_LE(v, vCorner * 1.001) << "too fast in a corner at t = " << t0;
+		}
+		if (prevV >= 0)
+			ASSERT_LE(std::abs(v - prevV) / dt, aLon * 1.05) << t0;
+		prevV = v;
+		slowest = std::min(slowest, v);
+	}
+	EXPECT_GT(onArcs, 4 * 5);  // four corners of 9.4 m at 3.9 m/s: 2.4 s each
+	EXPECT_NEAR(slowest, vCorner, 0.05);
+	// The pose follows: the sensor is where the route is at that distance.
+	const auto p = slowing.sensorPoseAt(o.start_stamp_s + 20);
+	const auto q = route.at(slowing.distanceAt(20));
+	EXPECT_NEAR(p.x(), q.x, 1e-6);
+	EXPECT_NEAR(p.y(), q.y, 1e-6);
+
+	o.accel_mps2 = 0;
+	EXPECT_THROW(sim::Simulator(world, sim::LidarModel::vlp16(), route, o), std::invalid_argument);
+}
+
 TEST(SimRoute, DemoClosesItsLoopOnTheGround)
 {
 	const auto sc = sim::loadScenario(scenarioPath("town-loop.yaml"));
@@ -514,6 +567,19 @@ TEST(SimScenario, DefaultsAndErrors)
 	expectError("lidar.yaml", "lidar: hdl32\n", "lidar");
 	expectError("map.yaml", "noise: 3\n", "noise");
 	expectError("world.yaml", "world: moon\n", "world");
+	// The realism keys (rawlogs/town-kitti.yaml).
+	expectError("body.yaml", "body:\n  pitch_deg: 9\n", "body.pitch_deg");
+	expectError("ego.yaml", "ego:\n  body: {front_m: -1}\n", "ego.body");
+	expectError("egokey.yaml", "ego:\n  roof: {front_m: 1}\n", "ego.roof");
+	expectError("corner.yaml", "corner_accel_mps2: -1\n", "corner_accel_mps2");
+	expectError("accel.yaml", "accel_mps2: 0\n", "accel_mps2");
+	expectError("foliage.yaml", "noise:\n  foliage_depth_m: 3\n", "noise.foliage_depth_m");
+	expectError("refl.yaml", "noise:\n  range_by_reflectivity: 3\n", "noise.range_by_reflectivity");
+	expectError("hedge.yaml", "town:\n  hedge_share: 2\n", "town.hedge_share");
+	expectError("curb.yaml", "town:\n  curb_m: 1\n", "town.curb_m");
+	expectError("van.yaml", "town:\n  van_share: -0.1\n", "town.van_share");
+	expectError("jitter.yaml", "town:\n  parking_jitter_m: 2\n", "town.parking_jitter_m");
+	expectError("facade.yaml", "town:\n  facade_detail: maybe\n", "town.facade_detail");
 	expectError("tour.yaml", "route: room_tour\n", "route.pattern");  // a town has no rooms
 	expectError("rows.yaml", "world: indoor\nroute: room_tour\nindoor: {rooms_y: 3}\n",
 	            "indoor.rooms_y");  // a closed tour of 3 rows would cross walls

@@ -10,12 +10,16 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
+#include <tuple>
 
+#include "sim_test_support.h"
 #include "test_support.h"
 
 namespace
 {
 using namespace rasterslam;
+constexpr double kDeg = 3.14159265358979323846 / 180;
 
 /** Flat ground (z = -1.73 in the sensor frame) on a grid, plus `walls` as point lists. */
 std::vector<PointXYZI> groundGrid(double half, double step)
@@ -81,6 +85,184 @@ TEST(SceneStats, KnownScenes)
 	EXPECT_NE(text.find("ground share"), std::string::npos) << text;
 	EXPECT_NE(text.find("wall isotropy"), std::string::npos) << text;
 	EXPECT_THROW(eval::formatSceneStats({"a"}, {s, r}), std::invalid_argument);
+}
+
+/** One exact scan of flat empty ground with these options, from (0, 0) at `height` m. */
+std::vector<PointXYZI> flatScan(const sim::LidarModel& lidar, sim::SimulatorOptions o)
+{
+	const sim::Simulator s(std::make_shared<const sim::World>(), lidar, sim::Route(), o);
+	return s.scanFrom(mrpt::poses::CPose3D(0, 0, o.sensor_height_m, 0, 0, 0), 0, 0).points;
+}
+
+TEST(SimLidarModel, Hdl64eBeamsAndLaserHeights)
+{
+	const auto m = sim::LidarModel::hdl64e();
+	ASSERT_EQ(m.beamCount(), 64);
+	EXPECT_NEAR(m.elevationsDeg().front(), -24.5551, 1e-9);
+	EXPECT_NEAR(m.elevationsDeg().back(), 1.9601, 1e-9);
+	// Two blocks: 32 beams below -8.7 deg about 1/2 deg apart, 32 above about 1/3 deg apart.
+	EXPECT_LT(m.elevationsDeg()[31], -8.7);
+	EXPECT_GT(m.elevationsDeg()[32], -8.6);
+	EXPECT_NEAR((m.elevationsDeg()[31] - m.elevationsDeg()[0]) / 31, 0.51, 0.02);
+	EXPECT_NEAR((m.elevationsDeg()[63] - m.elevationsDeg()[32]) / 31, 0.34, 0.02);
+	EXPECT_EQ(sim::LidarModel::byName("hdl64e").name(), "hdl64e");
+	// Each laser above the frame's origin: a ground point of beam b lies at the ground
+	// (z = -sensor height in the frame) and (H + lift) / tan(-elevation) away.
+	auto o = test::exactSimOptions();
+	const auto pts = flatScan(m, o);
+	const double H = o.sensor_height_m;
+	int checked = 0;
+	for (int b : {0, 10, 31, 32, 40})
+	{
+		const double el = m.elevationsDeg()[static_cast<std::size_t>(b)] * kDeg;
+		const double lift = m.originHeights_m()[static_cast<std::size_t>(b)];
+		const double d = (H + lift) / std::tan(-el);
+		int found = 0;
+		for (const auto& p : pts)
+			if (std::abs(std::hypot(p.x, p.y) - d) < 0.005)
+			{
+				EXPECT_NEAR(p.z, -H, 1e-4) << "beam " << b;
+				found++;
+			}
+		EXPECT_NEAR(found, m.azimuthSteps(), m.azimuthSteps() / 50) << "beam " << b;
+		checked++;
+	}
+	EXPECT_EQ(checked, 5);
+}
+
+TEST(SimNoise, DarkSurfacesAreSeenLessFar)
+{
+	const auto m = sim::LidarModel::hdl64e();
+	auto o = test::exactSimOptions();
+	const auto farthest = [](const std::vector<PointXYZI>& pts)
+	{
+		double r = 0;
+		for (const auto& p : pts)
+			r = std::max(r, std::hypot(double{p.x}, double{p.y}));
+		return r;
+	};
+	const double all = farthest(flatScan(m, o));
+	o.noise.range_by_reflectivity = true;
+	const double limit =
+	    m.maxRange_m() * std::sqrt(sim::nominalIntensity(sim::ObjectKind::Ground) / 0.8);
+	const double dark = farthest(flatScan(m, o));
+	EXPECT_GT(all, limit + 10) << "without it the ground is seen beyond " << limit << " m";
+	EXPECT_LE(dark, limit);
+	EXPECT_GT(dark, limit - 15);
+}
+
+TEST(SimEgo, TheCarryingVehicleHidesWhatIsBehindItAndNothingElse)
+{
+	const auto m = sim::LidarModel::hdl64e();
+	auto o = test::exactSimOptions();
+	const auto open = flatScan(m, o);
+	o.ego_body = {2.0, 1.8, 0.9, 1.0};
+	o.ego_cabin = {0.5, 1.2, 0.75, 1.5};
+	const auto shaded = flatScan(m, o);
+	ASSERT_LT(shaded.size(), open.size());
+	EXPECT_GT(shaded.size(), open.size() / 2);
+	// A point stays exactly when the straight line from its laser to it misses both boxes.
+	const auto inBox = [&](const sim::EgoBox& b, const Eigen::Vector3d& q)
+	{
+		return q.x() > -b.back_m && q.x() < b.front_m && std::abs(q.y()) < b.half_width_m &&
+		       q.z() < b.height_m - o.sensor_height_m;
+	};
+	std::set<std::tuple<float, float, float>> kept;
+	for (const auto& p : shaded)
+		kept.insert({p.x, p.y, p.z});
+	std::size_t hidden = 0, wrong = 0;
+	double farthestHidden = 0;
+	for (const auto& p : open)
+	{
+		// The laser: above the origin by its lift, found from the point's elevation.
+		const double r = std::hypot(p.x, p.y);
+		double lift = 0, best = 1e9;
+		for (int b = 0; b < m.beamCount(); b++)
+		{
+			const double l = m.originHeights_m()[static_cast<std::size_t>(b)];
+			const double e = std::abs(std::atan2(p.z - l, r) / kDeg -
+			                          m.elevationsDeg()[static_cast<std::size_t>(b)]);
+			if (e < best)
+			{
+				best = e;
+				lift = l;
+			}
+		}
+		// Walk the line over its first 3 m (the boxes lie within 2.1 m): in 2.5 mm steps, and
+		// in 0.02 mm steps where that disagrees (a ray grazing a corner).
+		const Eigen::Vector3d from(0, 0, lift), to(p.x, p.y, p.z);
+		const double len = (to - from).norm(), span = std::min(len, 3.0);
+		const auto walk = [&](double step)
+		{
+			for (double t = step; t < span; t += step)
+			{
+				const Eigen::Vector3d q = from + (to - from) * (t / len);
+				if (inBox(o.ego_body, q) || inBox(o.ego_cabin, q))
+					return true;
+			}
+			return false;
+		};
+		const bool stays = kept.count({p.x, p.y, p.z}) > 0;
+		bool crosses = walk(0.0025);
+		if (stays == crosses)
+			crosses = walk(0.00002);
+		hidden += !stays;
+		wrong += stays == crosses;
+		if (!stays)
+			farthestHidden = std::max(farthestHidden, r);
+	}
+	EXPECT_EQ(hidden, open.size() - shaded.size());
+	EXPECT_EQ(wrong, 0u) << "of " << hidden << " hidden";
+	// What is hidden is the steep rays' ground near the car: more than three beams' worth,
+	// all within 10 m.
+	EXPECT_GT(hidden, 3u * static_cast<std::size_t>(m.azimuthSteps()));
+	EXPECT_LT(farthestHidden, 10);
+}
+
+bool sameShape(const sim::Shape& a, const sim::Shape& b)
+{
+	return a.type == b.type && a.kind == b.kind && a.cx == b.cx && a.cy == b.cy && a.cz == b.cz &&
+	       a.a == b.a && a.b == b.b && a.zmin == b.zmin && a.zmax == b.zmax;
+}
+
+TEST(SimTown, StreetDetailKeepsTheLayout)
+{
+	sim::TownParams plain;
+	sim::TownParams rich = plain;
+	rich.hedge_share = 0.6;
+	rich.signs_per_100m = 3;
+	rich.street_furniture_per_100m = 5;
+	rich.facade_detail = true;
+	rich.curb_m = 0.12;
+	rich.irregular_crowns = true;
+	const auto a = sim::World::generate(plain, 42), b = sim::World::generate(rich, 42);
+	// Every shape of the plain town is in the detailed one, in the same order.
+	std::size_t j = 0;
+	for (const auto& s : a.shapes())
+	{
+		while (j < b.shapes().size() && !sameShape(s, b.shapes()[j]))
+			j++;
+		ASSERT_LT(j, b.shapes().size()) << "a shape of the plain town is missing";
+		j++;
+	}
+	EXPECT_GT(b.shapes().size(), 3 * a.shapes().size());
+	// Kerb slabs 0.12 m high, flat signs, lobes: the added shapes are what was asked for.
+	std::size_t slabs = 0, panels = 0;
+	for (const auto& s : b.shapes())
+	{
+		slabs += s.kind == sim::ObjectKind::Ground && s.type == sim::ShapeType::Box;
+		panels += s.kind == sim::ObjectKind::Pole && s.type == sim::ShapeType::Box;
+	}
+	EXPECT_GT(slabs, 500u);
+	EXPECT_GT(panels, 10u);
+
+	// Vans and SUVs: taller parked vehicles.
+	rich.van_share = 0.5;
+	const auto c = sim::World::generate(rich, 42);
+	std::size_t tall = 0;
+	for (const auto& s : c.shapes())
+		tall += s.kind == sim::ObjectKind::Car && s.zmax - s.zmin > 1.5;  // a car: 0.7-1.0
+	EXPECT_GT(tall, 10u) << "vans stand 1.9-2.4 m high, 0.3 m off the ground";
 }
 
 eval::SceneStats simulated(const std::string& scenario, std::size_t count)

@@ -196,9 +196,9 @@ int run(const Args& args)
 	const double tWorld =
 	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 	std::cerr << "rasterslam-sim: " << sc.source << ": " << simulator.world().shapes().size()
-	          << " shapes, route " << simulator.route().length() << " m ("
-	          << simulator.route().length() / sc.speed_mps << " s a lap), " << sc.scans << " "
-	          << sc.lidar << " scans at " << sc.rate_hz << " Hz, seed " << sc.seed << "\n";
+	          << " shapes, route " << simulator.route().length() << " m (" << simulator.lapTime()
+	          << " s a lap), " << sc.scans << " " << sc.lidar << " scans at " << sc.rate_hz
+	          << " Hz, seed " << sc.seed << "\n";
 	if (sc.changes.epoch > 0)
 		std::cerr << "  epoch " << sc.changes.epoch << ": " << simulator.world().changes().size()
 		          << " changes since epoch 0 (parked cars, walls, facades, furniture), vegetation "

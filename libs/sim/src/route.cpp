@@ -123,10 +123,10 @@ std::vector<Eigen::Vector2d> Route::roomTour(const IndoorParams& p)
 	return wp;
 }
 
-PlanarPose Route::at(double s) const
+const Route::Piece& Route::pieceAt(double& s) const
 {
 	if (pieces_.empty())
-		throw std::logic_error("Route::at on an empty route");
+		throw std::logic_error("Route: empty route");
 	if (closed_)
 	{
 		s = std::fmod(s, length_);
@@ -137,7 +137,17 @@ PlanarPose Route::at(double s) const
 		s = std::clamp(s, 0.0, length_);
 	auto it = std::upper_bound(pieces_.begin(), pieces_.end(), s,
 	                           [](double v, const Piece& p) { return v < p.s0; });
-	const Piece& p = *(it == pieces_.begin() ? it : std::prev(it));
+	return it == pieces_.begin() ? *it : *std::prev(it);
+}
+
+double Route::curvatureAt(double s) const
+{
+	return std::abs(pieceAt(s).curvature);
+}
+
+PlanarPose Route::at(double s) const
+{
+	const Piece& p = pieceAt(s);
 	const double u = std::clamp(s - p.s0, 0.0, p.len);
 	PlanarPose out;
 	if (p.curvature == 0)

@@ -158,6 +158,7 @@ Scenario loadScenario(const std::string& path)
 	     [&](const Node& n, const std::string& k) { t.facade_detail = r.boolean(n, k); }},
 	    {"curb_m", num(t.curb_m)},
 	    {"van_share", num(t.van_share)},
+	    {"parking_jitter_m", num(t.parking_jitter_m)},
 	    {"irregular_crowns",
 	     [&](const Node& n, const std::string& k) { t.irregular_crowns = r.boolean(n, k); }}};
 	IndoorParams& in = sc.indoor;
@@ -197,11 +198,25 @@ Scenario loadScenario(const std::string& path)
 	    {"range_sigma_m", num(nz.range_sigma_m)},
 	    {"dropout_prob", num(nz.dropout_prob)},
 	    {"intensity_sigma", num(nz.intensity_sigma)},
-	    {"foliage_depth_m", num(nz.foliage_depth_m)}};
+	    {"foliage_depth_m", num(nz.foliage_depth_m)},
+	    {"range_by_reflectivity",
+	     [&](const Node& n, const std::string& k) { nz.range_by_reflectivity = r.boolean(n, k); }}};
 
 	const std::map<std::string, Reader::Handler> bodyKeys = {{"pitch_deg", num(sc.body_pitch_deg)},
 	                                                         {"roll_deg", num(sc.body_roll_deg)},
 	                                                         {"heave_m", num(sc.body_heave_m)}};
+
+	const auto egoKeys = [&](EgoBox& b)
+	{
+		return std::map<std::string, Reader::Handler>{{"front_m", num(b.front_m)},
+		                                              {"back_m", num(b.back_m)},
+		                                              {"half_width_m", num(b.half_width_m)},
+		                                              {"height_m", num(b.height_m)}};
+	};
+	const auto bodyBox = egoKeys(sc.ego_body), cabinBox = egoKeys(sc.ego_cabin);
+	const std::map<std::string, Reader::Handler> egoParts = {
+	    {"body", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, bodyBox); }},
+	    {"cabin", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, cabinBox); }}};
 
 	TrafficParams& tr = sc.traffic;
 	const std::map<std::string, Reader::Handler> trafficKeys = {
@@ -225,6 +240,8 @@ Scenario loadScenario(const std::string& path)
 	     { sc.scans = static_cast<std::size_t>(r.integer(n, k, 1, kMaxInt)); }},
 	    {"rate_hz", num(sc.rate_hz)},
 	    {"speed_mps", num(sc.speed_mps)},
+	    {"corner_accel_mps2", num(sc.corner_accel_mps2)},
+	    {"accel_mps2", num(sc.accel_mps2)},
 	    {"sensor_height_m", num(sc.sensor_height_m)},
 	    {"start_stamp_s", num(sc.start_stamp_s)},
 	    {"threads", intIn(sc.threads, 1, 64)},
@@ -253,6 +270,7 @@ Scenario loadScenario(const std::string& path)
 	    {"indoor", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, indoorKeys); }},
 	    {"handheld", [&](const Node& n, const std::string& k) { sc.handheld = r.boolean(n, k); }},
 	    {"body", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, bodyKeys); }},
+	    {"ego", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, egoParts); }},
 	    {"noise", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, noiseKeys); }},
 	    {"traffic", [&](const Node& n, const std::string& k) { r.forEachKey(n, k, trafficKeys); }},
 	    {"epoch", intIn(ch.epoch, 0, 10000)},
@@ -281,6 +299,9 @@ void validateScenario(const Scenario& sc)
 	need(sc.scans >= 1, "scans", "expected >= 1");
 	need(sc.rate_hz > 0 && sc.rate_hz <= 100, "rate_hz", "expected in (0, 100]");
 	need(sc.speed_mps >= 0 && sc.speed_mps <= 50, "speed_mps", "expected in [0, 50]");
+	need(sc.corner_accel_mps2 >= 0 && sc.corner_accel_mps2 <= 10, "corner_accel_mps2",
+	     "expected in [0, 10]");
+	need(sc.accel_mps2 > 0 && sc.accel_mps2 <= 10, "accel_mps2", "expected in (0, 10]");
 	need(sc.sensor_height_m > 0 && sc.sensor_height_m < 10, "sensor_height_m",
 	     "expected in (0, 10)");
 	need(sc.start_stamp_s >= 0, "start_stamp_s", "expected >= 0");
@@ -322,6 +343,12 @@ void validateScenario(const Scenario& sc)
 	need(sc.body_pitch_deg >= 0 && sc.body_pitch_deg <= 5, "body.pitch_deg", "expected in [0, 5]");
 	need(sc.body_roll_deg >= 0 && sc.body_roll_deg <= 5, "body.roll_deg", "expected in [0, 5]");
 	need(sc.body_heave_m >= 0 && sc.body_heave_m <= 0.2, "body.heave_m", "expected in [0, 0.2]");
+	for (const auto& [name, b] : {std::pair<const char*, const EgoBox&>{"ego.body", sc.ego_body},
+	                              std::pair<const char*, const EgoBox&>{"ego.cabin", sc.ego_cabin}})
+		need(b.front_m >= 0 && b.back_m >= 0 && b.half_width_m >= 0 && b.height_m >= 0 &&
+		         b.front_m <= 10 && b.back_m <= 10 && b.half_width_m <= 5 && b.height_m <= 5,
+		     name,
+		     "expected front_m, back_m <= 10, half_width_m <= 5, height_m <= 5, none negative");
 	const TownParams& t = sc.town;
 	need(t.block_size_m >= 2 * t.sidewalk_m + 10, "town.block_size_m",
 	     "expected >= 2 * sidewalk_m + 10");
@@ -340,6 +367,8 @@ void validateScenario(const Scenario& sc)
 	need(t.street_furniture_per_100m >= 0, "town.street_furniture_per_100m", "expected >= 0");
 	need(t.curb_m >= 0 && t.curb_m <= 0.3, "town.curb_m", "expected in [0, 0.3]");
 	need(t.van_share >= 0 && t.van_share <= 1, "town.van_share", "expected in [0, 1]");
+	need(t.parking_jitter_m >= 0 && t.parking_jitter_m <= 1, "town.parking_jitter_m",
+	     "expected in [0, 1]");
 	const TrafficParams& tr = sc.traffic;
 	need(tr.cars >= 0 && tr.cars <= 10000, "traffic.cars", "expected in 0..10000");
 	need(tr.pedestrians >= 0 && tr.pedestrians <= 10000, "traffic.pedestrians",

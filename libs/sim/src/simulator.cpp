@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <thread>
@@ -32,6 +33,121 @@ Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route
 	    !(opt_.point_resolution_m >= 0))
 		throw std::invalid_argument(
 		    "Simulator: needs rate_hz > 0, speed_mps >= 0, threads >= 1, point_resolution_m >= 0");
+	if (!(opt_.corner_accel_mps2 >= 0) || !(opt_.accel_mps2 > 0))
+		throw std::invalid_argument("Simulator: needs corner_accel_mps2 >= 0 and accel_mps2 > 0");
+	if (opt_.corner_accel_mps2 > 0 && opt_.speed_mps > 0 && !route_.empty())
+		buildSpeedProfile();
+	// The rays the carrying vehicle blocks: fixed in the sensor frame, so found once.
+	if (!opt_.ego_body.empty() || !opt_.ego_cabin.empty())
+	{
+		const int nBeams = lidar_.beamCount(), nAz = lidar_.azimuthSteps();
+		egoBlocked_.assign(static_cast<std::size_t>(nBeams) * static_cast<std::size_t>(nAz), 0);
+		const auto meets =
+		    [&](const EgoBox& box, const Eigen::Vector3d& o, const Eigen::Vector3d& d)
+		{
+			if (box.empty())
+				return false;
+			// Slab test against the box [-back, front] x [-hw, hw] x [-h0, top - h0].
+			const double lo[3] = {-box.back_m, -box.half_width_m, -opt_.sensor_height_m};
+			const double hi[3] = {box.front_m, box.half_width_m,
+			                      box.height_m - opt_.sensor_height_m};
+			double t0 = 0, t1 = lidar_.maxRange_m();
+			for (int i = 0; i < 3; i++)
+			{
+				if (std::abs(d[i]) < 1e-12)
+				{
+					if (o[i] < lo[i] || o[i] > hi[i])
+						return false;
+					continue;
+				}
+				double a = (lo[i] - o[i]) / d[i], b = (hi[i] - o[i]) / d[i];
+				if (a > b)
+					std::swap(a, b);
+				t0 = std::max(t0, a);
+				t1 = std::min(t1, b);
+				if (t0 > t1)
+					return false;
+			}
+			return true;
+		};
+		for (int b = 0; b < nBeams; b++)
+		{
+			const double el = lidar_.elevationsDeg()[static_cast<std::size_t>(b)] * kDeg;
+			const Eigen::Vector3d o(0, 0, lidar_.originHeights_m()[static_cast<std::size_t>(b)]);
+			for (int a = 0; a < nAz; a++)
+			{
+				const double az = 2 * 3.14159265358979323846 * a / nAz;
+				const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+				                        std::sin(el));
+				egoBlocked_[static_cast<std::size_t>(b) * static_cast<std::size_t>(nAz) +
+				            static_cast<std::size_t>(a)] =
+				    meets(opt_.ego_body, o, d) || meets(opt_.ego_cabin, o, d);
+			}
+		}
+	}
+}
+
+void Simulator::buildSpeedProfile()
+{
+	// The fastest speed at every 5 cm that keeps to the corner bound and to the braking and
+	// speeding-up bound v^2 <= v_next^2 + 2 a ds both ways (around the loop twice when it is
+	// closed, so that the bound reaches across its start), then the time to each point.
+	const double L = route_.length(), a = opt_.accel_mps2;
+	const auto n = static_cast<std::size_t>(std::ceil(L / 0.05));
+	profileStep_ = L / static_cast<double>(n);
+	std::vector<double> v(n + 1);
+	for (std::size_t i = 0; i <= n; i++)
+	{
+		const double k = route_.curvatureAt(std::min(L, static_cast<double>(i) * profileStep_));
+		v[i] = k > 0 ? std::min(opt_.speed_mps, std::sqrt(opt_.corner_accel_mps2 / k))
+		             : opt_.speed_mps;
+	}
+	const double dv2 = 2 * a * profileStep_;
+	const int rounds = route_.closed() ? 2 : 1;
+	for (int r = 0; r < rounds; r++)
+	{
+		for (std::size_t i = 1; i <= n; i++)
+			v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + dv2));
+		if (route_.closed())
+			v[0] = v[n] = std::min(v[0], v[n]);
+		for (std::size_t i = n; i-- > 0;)
+			v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + dv2));
+		if (route_.closed())
+			v[0] = v[n] = std::min(v[0], v[n]);
+	}
+	profileTime_.assign(n + 1, 0.0);
+	for (std::size_t i = 1; i <= n; i++)
+		profileTime_[i] = profileTime_[i - 1] + 2 * profileStep_ / (v[i - 1] + v[i]);
+}
+
+double Simulator::lapTime() const
+{
+	if (!profileTime_.empty())
+		return profileTime_.back();
+	return opt_.speed_mps > 0 ? route_.length() / opt_.speed_mps
+	                          : std::numeric_limits<double>::infinity();
+}
+
+double Simulator::distanceAt(double t) const
+{
+	if (profileTime_.empty())
+		return opt_.speed_mps * t;
+	const double lap = profileTime_.back(), L = route_.length();
+	double laps = 0;
+	if (t >= lap)
+	{
+		if (!route_.closed())
+			return L + opt_.speed_mps * (t - lap);  // past the end: Route::at stops there
+		laps = std::floor(t / lap);
+		t -= laps * lap;
+	}
+	t = std::max(0.0, t);
+	const auto it = std::upper_bound(profileTime_.begin(), profileTime_.end(), t);
+	const auto i = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - profileTime_.begin()));
+	const std::size_t j = std::min(i, profileTime_.size() - 1);
+	const double t0 = profileTime_[j - 1], t1 = profileTime_[j];
+	const double f = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 0.0;
+	return laps * L + (static_cast<double>(j - 1) + f) * profileStep_;
 }
 
 Simulator Simulator::fromScenario(const Scenario& sc)
@@ -67,6 +183,10 @@ Simulator Simulator::fromScenario(const Scenario& sc)
 	o.body_pitch_deg = sc.body_pitch_deg;
 	o.body_roll_deg = sc.body_roll_deg;
 	o.body_heave_m = sc.body_heave_m;
+	o.corner_accel_mps2 = sc.corner_accel_mps2;
+	o.accel_mps2 = sc.accel_mps2;
+	o.ego_body = sc.ego_body;
+	o.ego_cabin = sc.ego_cabin;
 	o.sweep.startAzimuth_deg = sc.sweep_start_azimuth_deg;
 	o.sweep.clockwise = sc.sweep_clockwise;
 	Simulator sim(std::move(world), LidarModel::byName(sc.lidar),
@@ -125,6 +245,9 @@ mrpt::poses::CPose3D Simulator::poseAfter(double s, double t) const
 mrpt::poses::CPose3D Simulator::sensorPose(std::size_t k) const
 {
 	// (The distance as speed * k / rate, not speed * (k / rate): the same bits as before.)
+	if (!profileTime_.empty())
+		return poseAfter(distanceAt(static_cast<double>(k) / opt_.rate_hz),
+		                 static_cast<double>(k) / opt_.rate_hz);
 	return poseAfter(opt_.speed_mps * static_cast<double>(k) / opt_.rate_hz,
 	                 static_cast<double>(k) / opt_.rate_hz);
 }
@@ -132,7 +255,7 @@ mrpt::poses::CPose3D Simulator::sensorPose(std::size_t k) const
 mrpt::poses::CPose3D Simulator::sensorPoseAt(double stampSec) const
 {
 	const double t = std::max(0.0, stampSec - opt_.start_stamp_s);
-	return poseAfter(opt_.speed_mps * t, t);
+	return poseAfter(distanceAt(t), t);
 }
 
 Scan Simulator::scan(std::size_t k) const
@@ -165,6 +288,7 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
                      double stampSec) const
 {
 	const int nBeams = lidar_.beamCount(), nAz = lidar_.azimuthSteps();
+	const std::vector<double>& lifts = lidar_.originHeights_m();
 	// Rotation and origin of each column (one for all without motion within the sweep).
 	std::vector<Eigen::Matrix3d> colR;
 	std::vector<Eigen::Vector3d> colO;
@@ -244,11 +368,19 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
 			{
 				const std::size_t col = colR.size() == 1 ? 0 : static_cast<std::size_t>(a);
 				const Eigen::Matrix3d& R = colR[col];
-				const Eigen::Vector3d& origin = colO[col];
+				const Eigen::Vector3d& sensorOrigin = colO[col];
 				for (int b = 0; b < nBeams; b++)
 				{
+					if (!egoBlocked_.empty() &&
+					    egoBlocked_[static_cast<std::size_t>(b) * static_cast<std::size_t>(nAz) +
+					                static_cast<std::size_t>(a)])
+						continue;
 					const Eigen::Vector3d ds(ce[b] * ca[a], ce[b] * sa[a], se[b]);
 					const Eigen::Vector3d dw = R * ds;
+					// A laser above the frame's origin (a real HDL-64E's sit 0.14-0.22 m up).
+					const double lift = lifts[static_cast<std::size_t>(b)];
+					const Eigen::Vector3d origin =
+					    lift != 0 ? Eigen::Vector3d(sensorOrigin + lift * R.col(2)) : sensorOrigin;
 					RayHit hit = world_->raycast(origin, dw, maxR);
 					for (const Placed& m : movers)
 					{
@@ -265,6 +397,9 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
 					}
 					if (!hit.hit() || hit.range < minR)
 						continue;
+					if (nz.range_by_reflectivity &&
+					    hit.range > maxR * std::sqrt(nominalIntensity(hit.kind) / 0.8))
+						continue;
 					if (nz.dropout_prob > 0 && unif(rng) < nz.dropout_prob)
 						continue;
 					double r = hit.range;
@@ -280,7 +415,7 @@ Scan Simulator::cast(const mrpt::poses::CPose3D& T_world_sensor,
 					PointXYZI p;
 					p.x = quantize(r * ds.x());
 					p.y = quantize(r * ds.y());
-					p.z = quantize(r * ds.z());
+					p.z = quantize(lift != 0 ? lift + r * ds.z() : r * ds.z());
 					p.intensity =
 					    static_cast<float>(std::round(std::clamp(inten, 0.0, 1.0) * 256) / 256);
 					pts.push_back(p);

@@ -26,7 +26,8 @@ enum Stream : std::uint32_t
 	kWall = 2,
 	kAnnex = 3,
 	kTree = 4,
-	kVehicle = 5
+	kVehicle = 5,
+	kSlotOffset = 6
 };
 
 /** The changes between sessions, replayed for one world: every object asks, for each epoch
@@ -338,7 +339,12 @@ void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& s
 			std::optional<Car> car;
 			if (rng.chance(occupancy))
 				car = drawCar(rng);
-			double along = 0;
+			// Real cars do not park on a 6 m grid: with street detail each slot's car stands up
+			// to 0.6 m off the slot's centre (its own draw, kept between sessions).
+			double along = detail && detail->p.parking_jitter_m > 0
+			                   ? (2 * detail::eventDraw(ep.seed, kSlotOffset, id, 0) - 1) *
+			                         detail->p.parking_jitter_m
+			                   : 0;
 			int lastParked = 0;
 			for (int e = 1; e <= ep.c.epoch; e++)
 			{

@@ -23,7 +23,9 @@ class LidarModel
 	 *  (`VelodyneCalibration::LoadDefaultCalibration("HDL64")`, its `vert_correction`s): an
 	 *  upper block of 32 beams from -8.56 to +1.96 deg (about 1/3 deg apart) and a lower block
 	 *  of 32 from -24.56 to -8.77 deg (about 1/2 deg). Fewer beams reach the ground near the
-	 *  vehicle than with hdl64()'s even spread, as on the real sensor. The table is kept here
+	 *  vehicle than with hdl64()'s even spread, as on the real sensor; each laser sits at its
+	 *  calibrated height (vert_offset_correction, 0.14-0.22 m) above the frame's origin, which
+	 *  is what sensor_height_m puts above the ground. The table is kept here
 	 *  because MRPT 2.5 (Debian 12) fails to load that calibration: its YAML loader reads the
 	 *  embedded text as a file name. Same steps and ranges as hdl64(). */
 	static LidarModel hdl64e();

@@ -38,6 +38,8 @@ class Route
 
 	/** Pose after driving s metres from the start. Throws std::logic_error on an empty route. */
 	PlanarPose at(double s) const;
+	/** |curvature| (1/m) at s metres from the start: 0 on a segment, 1/R on an arc. */
+	double curvatureAt(double s) const;
 	double length() const { return length_; }
 	bool closed() const { return closed_; }
 	bool empty() const { return pieces_.empty(); }
@@ -51,6 +53,9 @@ class Route
 		double yaw0;         //!< heading at the start
 		double curvature;    //!< 0 for a segment, +-1/R for a left/right arc
 	};
+	/** The piece at s, with s wrapped around a closed route or clamped to an open one.
+	 *  Throws std::logic_error on an empty route. */
+	const Piece& pieceAt(double& s) const;
 	std::vector<Piece> pieces_;
 	double length_ = 0;
 	bool closed_ = true;

@@ -12,6 +12,15 @@
 
 namespace rasterslam::sim
 {
+/** A box of the carrying vehicle around the sensor (sensor frame: x forward, y left), from
+ *  the ground up to height_m above it. Rays that meet it give no return, as a real driver
+ *  drops its own car's returns; a zero box is none. */
+struct EgoBox
+{
+	double front_m = 0, back_m = 0, half_width_m = 0, height_m = 0;
+	bool empty() const { return !(front_m + back_m > 0 && half_width_m > 0 && height_m > 0); }
+};
+
 struct NoiseParams
 {
 	/** Standard deviation of the Gaussian range noise along the beam. */
@@ -23,6 +32,11 @@ struct NoiseParams
 	/** Foliage lets light in: a return from a crown or hedge comes from this far inside it
 	 *  on average (an exponential depth, at most 4 times this; 0: from its surface). */
 	double foliage_depth_m = 0;
+	/** Dark surfaces are seen less far: a return's echo falls with reflectivity / range^2,
+	 *  so a surface of reflectivity rho (the intensity of its kind) is seen up to
+	 *  max_range * sqrt(rho / 0.8), the sensor's range being given for 80 %: asphalt
+	 *  (0.28) to 71 m of an HDL-64E's 120. Off: everything up to the maximum range. */
+	bool range_by_reflectivity = false;
 };
 
 struct RouteParams
@@ -63,6 +77,11 @@ struct Scenario
 	/** The vehicle's body rocking on its suspension (see SimulatorOptions::body_pitch_deg):
 	 *  scenario key `body: {pitch_deg, roll_deg, heave_m}`. */
 	double body_pitch_deg = 0, body_roll_deg = 0, body_heave_m = 0;
+	/** Slowing for corners (SimulatorOptions::corner_accel_mps2, accel_mps2). */
+	double corner_accel_mps2 = 0, accel_mps2 = 1.5;
+	/** The carrying vehicle's boxes (SimulatorOptions::ego_body, ego_cabin): keys
+	 *  `ego: {body: {front_m, back_m, half_width_m, height_m}, cabin: {...}}`. */
+	EgoBox ego_body, ego_cabin;
 	/** Each azimuth cast from the pose of its instant (see SimulatorOptions). */
 	bool motion_within_sweep = false;
 	double sweep_start_azimuth_deg = 180;

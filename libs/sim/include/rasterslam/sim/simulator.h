@@ -48,6 +48,13 @@ struct SimulatorOptions
 	 *  ground's rings fall on the same place scan after scan, which a scan matcher reads as
 	 *  standing still. */
 	double body_pitch_deg = 0, body_roll_deg = 0, body_heave_m = 0;
+	/** Slowing for corners: the speed on an arc of radius R is at most sqrt(this * R) (the
+	 *  lateral acceleration a driver keeps to; 2..3 m/s^2 in town), reached and left braking
+	 *  and speeding up at accel_mps2. 0: speed_mps everywhere, corners included. */
+	double corner_accel_mps2 = 0;
+	double accel_mps2 = 1.5;
+	/** The carrying vehicle: its body (bonnet to boot) and its cabin (up to the roof). */
+	EgoBox ego_body, ego_cabin;
 };
 
 /** Scans are instantaneous unless SimulatorOptions::motion_within_sweep is set (then every
@@ -86,6 +93,11 @@ class Simulator
 	const LidarModel& lidar() const { return lidar_; }
 	const Route& route() const { return route_; }
 	const SimulatorOptions& options() const { return opt_; }
+	/** Metres along the route t seconds after the start: speed_mps * t, or by the speed
+	 *  profile when the vehicle slows for corners (SimulatorOptions::corner_accel_mps2). */
+	double distanceAt(double t) const;
+	/** Seconds to drive the route once. */
+	double lapTime() const;
 
    private:
 	/** The pose `s` metres along the route, `t` seconds after the start (the hand's sway
@@ -96,11 +108,17 @@ class Simulator
 	Scan cast(const mrpt::poses::CPose3D& T_world_sensor,
 	          const std::vector<mrpt::poses::CPose3D>& columnPose,
 	          const std::vector<double>& columnStamp, std::size_t index, double stampSec) const;
+	void buildSpeedProfile();
 	std::shared_ptr<const World> world_;
 	LidarModel lidar_;
 	Route route_;
 	SimulatorOptions opt_;
 	Traffic traffic_;
+	/** Rays (beam-major: b * azimuthSteps + a) that meet the carrying vehicle's boxes. */
+	std::vector<std::uint8_t> egoBlocked_;
+	/** The speed profile, when slowing for corners: time at every profileStep_ metres. */
+	std::vector<double> profileTime_;
+	double profileStep_ = 0;
 };
 
 }  // namespace rasterslam::sim

@@ -123,12 +123,15 @@ struct TownParams
 	double curb_m = 0;
 	/** Share of parked vehicles that are vans or SUVs rather than cars. */
 	double van_share = 0;
+	/** A parked car stands up to this far along the kerb off its 6 m slot's centre. */
+	double parking_jitter_m = 0;
 	/** Crowns of several lobes rather than one ellipsoid. */
 	bool irregular_crowns = false;
 	bool detailed() const
 	{
 		return hedge_share > 0 || signs_per_100m > 0 || street_furniture_per_100m > 0 ||
-		       facade_detail || curb_m > 0 || van_share > 0 || irregular_crowns;
+		       facade_detail || curb_m > 0 || van_share > 0 || irregular_crowns ||
+		       parking_jitter_m > 0;
 	}
 
 	/** Distance between two parallel street centre lines. */
