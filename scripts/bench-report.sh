@@ -3,7 +3,8 @@
 # bench/results/REPORT.md with every table they print, the command and the time each took,
 # the commit and the machine, and PNG plots beside it: trajectories from above against the
 # ground truth (the paper's tracking, GICP and KISS-ICP on each input), ms per scan and memory
-# over a run, and the loop detector's precision-recall curves.
+# over a run, and the loop detector's precision-recall curves. Written to the default OUT, it
+# also puts its tables into README.md (scripts/readme-figures.sh).
 #
 # usage: scripts/bench-report.sh [--quick|--smoke]      (make bench / make bench-quick)
 #   full:    benchmark.sh, benchmark-loops.sh, benchmark-mapping.sh, benchmark-sessions.sh,
@@ -163,3 +164,7 @@ fi
 mv "$report" "$OUT/REPORT.md"
 trap - EXIT
 echo "bench-report: wrote $OUT/REPORT.md" >&2
+# The README's tables are this report's when it is the committed one (the default OUT).
+if [ "$OUT" -ef "$here/bench/results" ]; then
+  bash "$here/scripts/readme-figures.sh" >&2
+fi

@@ -7,9 +7,9 @@
 # drives (rawlogs/town-loop.yaml, HDL-64E; rawlogs/town-vlp16.yaml, VLP-16; town-sweep.yaml,
 # HDL-64E sweeps taken while moving, each config also with engine.deskew; indoor-handheld.yaml,
 # a VLP-16 carried through rooms, with the indoor configs instead of the given ones;
-# town-kitti.yaml, a street made to look like the KITTI sample, sweeps not de-skewed as
-# KITTI's: there GICP's and KISS-ICP's errors are set against their KITTI-sample errors, and
-# the scene statistics of both are printed side by side).
+# town-kitti.yaml, a street made to look like the KITTI sample, raw sweeps taken while moving,
+# each config also with engine.deskew: there GICP's and KISS-ICP's errors are set against
+# their KITTI-sample errors, and the scene statistics of both are printed side by side).
 #
 # KISS-ICP runs beside them on every input, on the same core, scored by the same evaluator:
 # it is built from the pinned sources of ../shared/anchors/kiss-icp into KISS_DIR (outside

@@ -363,6 +363,47 @@ TEST(BenchReport, SmokeReportIsComplete)
 		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }
 
+// The README's benchmark tables are the committed report's (scripts/readme-figures.sh): they
+// match it, and the check catches a README that drifted from it.
+TEST(ReadmeFigures, MatchTheReport)
+{
+	const std::string script = test::sourcePath("scripts/readme-figures.sh");
+	const auto ok = test::runCommand("bash " + script + " --check");
+	EXPECT_EQ(ok.exitCode, 0) << ok.output;
+
+	const test::ScopedTempDir dir("readme-figures");
+	const auto readme = dir / "README.md", report = dir / "REPORT.md";
+	std::ofstream(report)
+	    << "# report\n\n- commit: `abc1234`; made today by `x quick`\n\n"
+	       "## Tables\n\n`cmd`\n\n```\nrow 1.00\n```\n\n### Plots\n\n![p](p.png)\n";
+	std::ofstream(readme)
+	    << "intro\n<!-- report: Tables -->\nstale 9.99\n<!-- end report -->\nend\n";
+	const std::string env = "README=" + readme.string() + " REPORT=" + report.string() + " ";
+	const auto stale = test::runCommand(env + "bash " + script + " --check");
+	EXPECT_EQ(stale.exitCode, 1) << stale.output;
+	EXPECT_NE(stale.output.find("differ"), std::string::npos) << stale.output;
+	const auto update = test::runCommand(env + "bash " + script);
+	ASSERT_EQ(update.exitCode, 0) << update.output;
+	std::ifstream in(readme);
+	const std::string md((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+	EXPECT_EQ(md,
+	          "intro\n<!-- report: Tables -->\nFrom `bench/results/REPORT.md` (commit: `abc1234`; "
+	          "made today by `x quick`), section \"Tables\":\n\n`cmd`\n\n```\nrow 1.00\n```\n"
+	          "<!-- end report -->\nend\n");
+	EXPECT_EQ(test::runCommand(env + "bash " + script + " --check").exitCode, 0);
+	// A section the report lacks is an error, and the README is left as it was.
+	std::ofstream(readme) << "<!-- report: Missing -->\n<!-- end report -->\n";
+	const auto missing = test::runCommand(env + "bash " + script);
+	EXPECT_NE(missing.exitCode, 0);
+	EXPECT_NE(missing.output.find("no section \"Missing\""), std::string::npos) << missing.output;
+	std::ifstream again(readme);
+	const std::string kept((std::istreambuf_iterator<char>(again)),
+	                       std::istreambuf_iterator<char>());
+	EXPECT_EQ(kept, "<!-- report: Missing -->\n<!-- end report -->\n");
+	for (const auto& e : fs::directory_iterator(dir.path()))
+		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+}
+
 // scripts/bench-repro.sh (make bench-repro) makes the report twice and compares every result
 // file and the report's accuracy columns: two runs give the same figures, timings aside.
 TEST(BenchReport, SmokeReportIsReproducible)
