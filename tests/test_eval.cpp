@@ -140,6 +140,39 @@ TEST(Eval, ConstantYawDriftReadsDegreesPerMetre)
 		EXPECT_NEAR(pl.r_err_deg_per_m, drift, 0.01 * drift);
 	const auto rpe = eval::computeRpe(gt, est, a);
 	EXPECT_NEAR(rpe.rot_mean_deg, drift * dist.back() / static_cast<double>(rpe.n), 1e-3 * drift);
+	// All of it in yaw, the right sign: 0.01 deg/m is 1 deg per 100 m.
+	EXPECT_NEAR(rpe.rot_drift_deg_per_100m.z(), 100 * drift, 1e-6);
+	EXPECT_NEAR(rpe.rot_drift_deg_per_100m.x(), 0, 1e-9);
+	EXPECT_NEAR(rpe.rot_drift_deg_per_100m.y(), 0, 1e-9);
+}
+
+TEST(Eval, RotationDriftIsToldApartByAxis)
+{
+	// A pitch bias of 0.02 deg a frame (nose down, negative about y) and zero-mean roll noise:
+	// the drift reads the bias per 100 m in pitch and next to nothing in roll.
+	const auto gt = planarDrive(400, 0.5, false, 6);
+	const auto a = eval::associate(gt, gt, true);
+	io::Trajectory est;
+	est.push_back(gt[0]);
+	for (std::size_t i = 1; i < gt.size(); ++i)
+	{
+		const Eigen::Isometry3d dG = eval::fullInverse(gt[i - 1].pose) * gt[i].pose;
+		Eigen::Isometry3d noise = Eigen::Isometry3d::Identity();
+		noise.linear() =
+		    (Eigen::AngleAxisd(-0.02 * kDeg, Eigen::Vector3d::UnitY()) *
+		     Eigen::AngleAxisd((i % 2 ? 0.05 : -0.05) * kDeg, Eigen::Vector3d::UnitX()))
+		        .toRotationMatrix();
+		auto sp = gt[i];
+		sp.pose = est.back().pose * dG * noise;
+		est.push_back(sp);
+	}
+	const auto rpe = eval::computeRpe(gt, est, a);
+	const double path = eval::trajectoryDistances(gt, a).back();
+	const double frames = static_cast<double>(gt.size() - 1);
+	EXPECT_NEAR(rpe.rot_drift_deg_per_100m.y(), -0.02 * frames * 100 / path, 1e-4);
+	EXPECT_NEAR(rpe.rot_drift_deg_per_100m.x(), 0, 0.05 * 100 / path);
+	EXPECT_NEAR(rpe.rot_drift_deg_per_100m.z(), 0, 1e-4);
+	EXPECT_GT(rpe.rot_rmse_deg, 0.05);
 }
 
 TEST(Eval, AteReadsAKnownResidual)

@@ -229,6 +229,9 @@ int runTraj(const TrajOptions& o)
 		j["rpe_trans_mean_m"] = jsonNumber(rpe.trans_mean_m);
 		j["rpe_rot_rmse_deg"] = jsonNumber(rpe.rot_rmse_deg);
 		j["rpe_rot_mean_deg"] = jsonNumber(rpe.rot_mean_deg);
+		j["rot_drift_deg_per_100m"] = {jsonNumber(rpe.rot_drift_deg_per_100m.x()),
+		                               jsonNumber(rpe.rot_drift_deg_per_100m.y()),
+		                               jsonNumber(rpe.rot_drift_deg_per_100m.z())};
 		j["segments"] = Json::array();
 		for (const double l : lengths)
 			j["segments"].push_back(jsonNumber(l));
@@ -272,6 +275,12 @@ int runTraj(const TrajOptions& o)
 	    "RPE per frame (%zu pairs): translation rmse %.4f m, mean %.4f m; rotation rmse %.4f deg, "
 	    "mean %.4f deg\n",
 	    rpe.n, rpe.trans_rmse_m, rpe.trans_mean_m, rpe.rot_rmse_deg, rpe.rot_mean_deg);
+	std::cout << buf;
+	std::snprintf(buf, sizeof(buf),
+	              "rotation drift by axis (per-frame errors added up, per 100 m): roll %+.3f, "
+	              "pitch %+.3f, yaw %+.3f deg\n",
+	              rpe.rot_drift_deg_per_100m.x(), rpe.rot_drift_deg_per_100m.y(),
+	              rpe.rot_drift_deg_per_100m.z());
 	std::cout << buf;
 	if (!relOk)
 	{

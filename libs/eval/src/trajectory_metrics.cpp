@@ -188,6 +188,8 @@ RpeResult computeRpe(const Trajectory& gt, const Trajectory& est, const Associat
 		return r;
 	r.n = a.gt.size() - 1;
 	std::vector<double> te(r.n), re(r.n);
+	Eigen::Vector3d drift = Eigen::Vector3d::Zero();
+	double path = 0;
 	for (std::size_t k = 0; k < r.n; ++k)
 	{
 		const Eigen::Isometry3d dG = fullInverse(gt[a.gt[k]].pose) * gt[a.gt[k + 1]].pose;
@@ -195,7 +197,12 @@ RpeResult computeRpe(const Trajectory& gt, const Trajectory& est, const Associat
 		const Eigen::Isometry3d E = fullInverse(dG) * dE;
 		te[k] = E.translation().norm();
 		re[k] = rotationAngle(E) * kRadToDeg;
+		const Eigen::AngleAxisd aa(Eigen::Matrix3d(E.linear()));
+		drift += aa.angle() * aa.axis();
+		path += dG.translation().norm();
 	}
+	if (path > 0)
+		r.rot_drift_deg_per_100m = drift * kRadToDeg * 100 / path;
 	r.trans_rmse_m = rms(te);
 	r.trans_mean_m = mean(te);
 	r.rot_rmse_deg = rms(re);
