@@ -7,8 +7,8 @@
 # drives (rawlogs/town-loop.yaml, HDL-64E; rawlogs/town-vlp16.yaml, VLP-16; town-sweep.yaml,
 # HDL-64E sweeps taken while moving, each config also with engine.deskew; indoor-handheld.yaml,
 # a VLP-16 carried through rooms, with the indoor configs instead of the given ones;
-# town-kitti.yaml, a street made to look like the KITTI sample, raw sweeps taken while moving,
-# each config also with engine.deskew: there GICP's and KISS-ICP's errors are set against
+# town-kitti.yaml, a street made to look like the KITTI sample, its scans compensated for the
+# motion as KITTI's odometry scans are: there GICP's and KISS-ICP's errors are set against
 # their KITTI-sample errors, and the scene statistics of both are printed side by side).
 #
 # KISS-ICP runs beside them on every input, on the same core, scored by the same evaluator:
@@ -125,14 +125,17 @@ declare -A kitti_sem=()
 realism() {  # realism NAME SIM_JSON: the simulated street's errors against the KITTI sample's
   local k="${kitti_sem[$1]:-}" goal=0
   [ -n "$k" ] || return 0
-  # The goal is the baselines': a simulator as hard as the real street for scan matchers.
+  # The goal is the baselines': the simulator no harder than twice the real street for scan
+  # matchers. Below half the real error, the simulator lacks some of the real data's errors.
   case "$1" in gicp-baseline|KISS-ICP) goal=1 ;; esac
   awk -v n="$1" -v g="$goal" -v ts="$(json "$2" .rel_trans_pct)" -v tk="$(json "$k" .rel_trans_pct)" \
       -v rs="$(json "$2" .rel_rot_deg_per_m)" -v rk="$(json "$k" .rel_rot_deg_per_m)" \
       'BEGIN{if (ts == "" || tk == "" || tk == 0 || rk == 0) {printf "%s: no segment to compare\n", n; exit}
-             ok = ts <= 2*tk && ts >= tk/2 && rs <= 2*rk && rs >= rk/2
-             printf "%s here vs on the KITTI sample: RTE %.3f vs %.3f %% (%.2f x), RRE %.4f vs %.4f deg/m (%.2f x)%s\n",
-               n, ts, tk, ts/tk, rs, rk, rs/rk, g ? (ok ? " (goal: within 2 x) met" : " (goal: within 2 x) NOT MET") : ""}'
+             ok = ts <= 2*tk && rs <= 2*rk
+             low = (ts < tk/2 ? " translation" : "") (rs < rk/2 ? " rotation" : "")
+             printf "%s here vs on the KITTI sample: RTE %.3f vs %.3f %% (%.2f x), RRE %.4f vs %.4f deg/m (%.2f x)%s%s\n",
+               n, ts, tk, ts/tk, rs, rk, rs/rk, g ? (ok ? "; goal (at most 2 x) met" : "; goal (at most 2 x) NOT MET") : "",
+               low != "" ? "; under half the real error in" low : ""}'
 }
 
 # --- KITTI ---------------------------------------------------------------------------
@@ -184,13 +187,13 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
     town-loop) n="$SIM_SCANS"; sim="$WORK/town-loop-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans" ;;
     town-vlp16) n="${SIM_LIMIT:-}"; sim="$WORK/$scen${n:+-$n}.rawlog"; what="${n:-400} VLP-16 scans" ;;
     town-sweep) n="$SIM_SCANS"; sim="$WORK/town-sweep-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans, motion within each sweep; +deskew: engine.deskew on" ;;
-    town-kitti) n="$SIM_SCANS"; sim="$WORK/town-kitti-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans (MRPT's HDL-64 beams) of a street like the KITTI sample's, slowing for corners, motion within each sweep; +deskew: engine.deskew on" ;;
+    town-kitti) n="$SIM_SCANS"; sim="$WORK/town-kitti-$SIM_SCANS.rawlog"; what="$SIM_SCANS HDL-64E scans (MRPT's HDL-64 beams) of a street like the KITTI sample's, slowing for corners, scans motion-compensated as KITTI's" ;;
     indoor-handheld) n="${SIM_LIMIT:-}"; sim="$WORK/$scen${n:+-$n}.rawlog"; what="${n:-450} VLP-16 scans carried by hand through rooms; the indoor configs"
       segs=10:40:10; kissopt=(--max-range 30 --min-range 0.5) ;;
   esac
   cfgs=("$@")
   [ "$scen" != indoor-handheld ] || cfgs=("$here/share/rasterslam/config/indoor.yaml" "$here/share/rasterslam/config/gicp-indoor.yaml")
-  if [ "$scen" = town-sweep ] || [ "$scen" = town-kitti ]; then
+  if [ "$scen" = town-sweep ]; then
     cfgs=()
     for cfg in "$@"; do
       d="$WORK/$(basename "$cfg" .yaml)+deskew.yaml"; with_deskew "$cfg" "$d"; cfgs+=("$cfg" "$d")
@@ -209,7 +212,8 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
     gt=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments "$segs" --json)
     row "$name" "$out" "$gt" ""
     outs+=("$out"); names+=("$name"); jsons+=("$gt")
-    [ "$scen" != town-kitti ] || sim_sem["$name"]="$gt"
+    # For the realism check: the KITTI sample's segment lengths (relative errors depend on them).
+    [ "$scen" != town-kitti ] || sim_sem["$name"]=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments 10:80:10 --json)
   done
   if [ -n "$kiss" ]; then
     velo="$WORK/$scen-bin"
@@ -220,14 +224,16 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
     run_kiss "$velo" "$kout" "${kissopt[@]}"
     kgt=$("$bin/rasterslam-eval" traj --gt "$velo/groundtruth.kitti" --est "$kout/trajectory.kitti" --segments "$segs" --json)
     kiss_row "$kout" "$kgt" ""
-    [ "$scen" != town-kitti ] || sim_sem[KISS-ICP]="$kgt"
+    [ "$scen" != town-kitti ] || sim_sem[KISS-ICP]=$("$bin/rasterslam-eval" traj --gt "$velo/groundtruth.kitti" --est "$kout/trajectory.kitti" --segments 10:80:10 --json)
   fi
-  ri=0; [ "$scen" != town-sweep ] && [ "$scen" != town-kitti ] || ri=1  # there: the first config with de-skewing
+  ri=0; [ "$scen" != town-sweep ] || ri=1  # there: the first config with de-skewing
   [ ${#outs[@]} -lt 2 ] || rate_note "${outs[$ri]}" "${outs[-1]}" "${names[$ri]}" "${names[-1]}"
   [ -z "$kiss" ] || kiss_ratio "${outs[$ri]}" "${jsons[$ri]}" "$kout" "$kgt" "${names[$ri]}"
   if [ "$scen" = town-kitti ]; then
     # Is the simulated street as hard as the real one? The same programs, as they run on the
-    # KITTI sample's raw scans (no de-skewing), within 2 x their errors there.
+    # KITTI sample's scans (no de-skewing), within 2 x their errors there, both on 10..80 m
+    # segments.
+    echo "On 10..80 m segments, as on the KITTI sample:"
     for name in "${!sim_sem[@]}"; do realism "$name" "${sim_sem[$name]}"; done | sort
     if [ -d "$DATA" ]; then
       echo

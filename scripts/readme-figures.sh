@@ -20,7 +20,9 @@ case "${1:-}" in
 esac
 [ -f "$README" ] || { echo "readme-figures: $README not found" >&2; exit 1; }
 [ -f "$REPORT" ] || { echo "readme-figures: $REPORT not found (make bench-quick)" >&2; exit 1; }
-tmp="$README.tmp-$$"
+# --check writes nothing beside the README (a read-only checkout); an update writes a
+# temporary file beside it and renames it over it.
+if [ "$check" = 1 ]; then tmp="$(mktemp "${TMPDIR:-/tmp}/readme-figures.XXXXXX")"; else tmp="$README.tmp-$$"; fi
 trap 'rm -f "$tmp"' EXIT
 awk -v report="$REPORT" '
   function section(title,   line, on, out, n, i, lines) {

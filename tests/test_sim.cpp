@@ -571,6 +571,11 @@ TEST(SimScenario, DefaultsAndErrors)
 	expectError("body.yaml", "body:\n  pitch_deg: 9\n", "body.pitch_deg");
 	expectError("ego.yaml", "ego:\n  body: {front_m: -1}\n", "ego.body");
 	expectError("egokey.yaml", "ego:\n  roof: {front_m: 1}\n", "ego.roof");
+	expectError("egohalf.yaml", "ego:\n  body: {front_m: 2}\n", "ego.body");
+	expectError("egotall.yaml",
+	            "ego:\n  cabin: {front_m: 1, back_m: 1, half_width_m: 1, height_m: 1.8}\n",
+	            "ego.cabin");
+	expectError("signs.yaml", "town:\n  signs_per_100m: 1000\n", "town.signs_per_100m");
 	expectError("corner.yaml", "corner_accel_mps2: -1\n", "corner_accel_mps2");
 	expectError("accel.yaml", "accel_mps2: 0\n", "accel_mps2");
 	expectError("foliage.yaml", "noise:\n  foliage_depth_m: 3\n", "noise.foliage_depth_m");

@@ -81,6 +81,18 @@ TEST(SceneStats, KnownScenes)
 	EXPECT_LT(r.meanIntensity, 0.75);
 
 	EXPECT_THROW(eval::SceneStatsAccumulator().finish(), std::invalid_argument);
+	// A scan without ground (only a wall) is left out and counted, not measured from the
+	// sensor's level.
+	std::vector<PointXYZI> wallOnly;
+	addWall(wallOnly, {-5, 6}, {5, 6}, 0.5f);
+	eval::SceneStatsAccumulator c;
+	c.add(wallOnly);
+	EXPECT_THROW(c.finish(), std::invalid_argument);
+	c.add(street);
+	const auto withSkip = c.finish();
+	EXPECT_EQ(withSkip.scans, 1u);
+	EXPECT_EQ(withSkip.scansWithoutGround, 1u);
+	EXPECT_DOUBLE_EQ(withSkip.groundShare, s.groundShare);
 	const std::string text = eval::formatSceneStats({"street", "room"}, {s, r});
 	EXPECT_NE(text.find("ground share"), std::string::npos) << text;
 	EXPECT_NE(text.find("wall isotropy"), std::string::npos) << text;
@@ -153,6 +165,14 @@ TEST(SimNoise, DarkSurfacesAreSeenLessFar)
 
 TEST(SimEgo, TheCarryingVehicleHidesWhatIsBehindItAndNothingElse)
 {
+	{
+		// A box up to the sensor would hide everything: refused.
+		auto tall = test::exactSimOptions();
+		tall.ego_cabin = {1, 1, 1, tall.sensor_height_m + 0.1};
+		EXPECT_THROW(sim::Simulator(std::make_shared<const sim::World>(), sim::LidarModel::vlp16(),
+		                            sim::Route(), tall),
+		             std::invalid_argument);
+	}
 	const auto m = sim::LidarModel::hdl64e();
 	auto o = test::exactSimOptions();
 	const auto open = flatScan(m, o);
@@ -327,5 +347,17 @@ TEST(SimRealism, EvalSceneCommand)
 	const auto labels = test::runCommand(
 	    eval + " scene " + test::sharedData("kitti00-0000-0100/velodyne") + " --label a --label b");
 	EXPECT_EQ(labels.exitCode, 2) << labels.output;
+	// Labels between the inputs, and a folder given with a trailing slash.
+	const std::string velo = test::sharedData("kitti00-0000-0100/velodyne");
+	const auto mixed = test::runCommand(eval + " scene --label first " + velo + " --label second " +
+	                                    velo + " --every 50 --json");
+	ASSERT_EQ(mixed.exitCode, 0) << mixed.output;
+	const auto jm = nlohmann::json::parse(mixed.output);
+	ASSERT_EQ(jm.size(), 2u);
+	EXPECT_EQ(jm[0]["label"], "first");
+	EXPECT_EQ(jm[1]["label"], "second");
+	const auto slash = test::runCommand(eval + " scene " + velo + "/ --every 50 --json");
+	ASSERT_EQ(slash.exitCode, 0) << slash.output;
+	EXPECT_EQ(nlohmann::json::parse(slash.output)[0]["label"], "velodyne");
 }
 }  // namespace

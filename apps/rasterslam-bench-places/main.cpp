@@ -90,7 +90,11 @@ int run(const Args& a)
 		sc.seed = static_cast<uint32_t>(a.seed0 + t);
 		sc.threads = 2;
 		const sim::Simulator s = sim::Simulator::fromScenario(sc);
-		const double step = sc.speed_mps / sc.rate_hz;  // metres a scan
+		// Metres a scan and scans a lap; a vehicle that slows for corners (corner_accel_mps2)
+		// takes lapTime() over it, and a scan is then the mean step.
+		const bool slows = sc.corner_accel_mps2 > 0;
+		const double step =
+		    slows ? s.route().length() / (s.lapTime() * sc.rate_hz) : sc.speed_mps / sc.rate_hz;
 		const auto every = std::max<std::size_t>(1, static_cast<std::size_t>(a.every_m / step));
 		const auto lap = static_cast<std::size_t>(s.route().length() / step);
 		for (std::size_t k = 0; k < lap; k += every)

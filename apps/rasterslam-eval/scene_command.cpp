@@ -18,8 +18,9 @@ const char* kSceneAbout =
     "RANSAC ground plane, or below it), the shares of points by horizontal range, the shares "
     "of the other points by height above the ground, the bird's-eye cells (0.2 m) they occupy "
     "within 40 m, how evenly the walls face every direction (isotropy: 0 = one way, as in a "
-    "straight street of plain facades; 1 = every way alike) and the intensities. Used to "
-    "check that simulated scenes look like real ones.";
+    "straight street of plain facades; 1 = every way alike) and the intensities. A scan in "
+    "which no ground plane is found is left out and counted. Used to check that simulated "
+    "scenes look like real ones.";
 
 struct SceneOptions
 {
@@ -62,9 +63,9 @@ eval::SceneStats statsOf(const std::string& input, const SceneOptions& o)
 	{
 		return acc.finish();
 	}
-	catch (const std::invalid_argument&)
+	catch (const std::invalid_argument& e)
 	{
-		throw std::runtime_error(input + ": no scan with points");
+		throw std::runtime_error(input + ": " + e.what());
 	}
 }
 
@@ -73,6 +74,7 @@ Json toJson(const std::string& label, const eval::SceneStats& s)
 	Json j;
 	j["label"] = label;
 	j["scans"] = s.scans;
+	j["scans_without_ground"] = s.scansWithoutGround;
 	j["points"] = jsonNumber(s.points);
 	j["ground_share"] = jsonNumber(s.groundShare);
 	j["range_share"] = Json::array();
@@ -95,7 +97,13 @@ int runScene(const SceneOptions& o)
 	std::vector<std::string> labels = o.labels;
 	if (labels.empty())
 		for (const auto& in : o.inputs)
-			labels.push_back(fs::path(in).filename().string().substr(0, 12));
+		{
+			// "dir/" has no file name: take the last component that has one.
+			const fs::path p = fs::path(in).lexically_normal();
+			const std::string name =
+			    p.has_filename() ? p.filename().string() : p.parent_path().filename().string();
+			labels.push_back(name.substr(0, 12));
+		}
 	std::vector<eval::SceneStats> stats;
 	for (const auto& in : o.inputs)
 		stats.push_back(statsOf(in, o));
@@ -121,6 +129,7 @@ Command addScene(CLI::App& app)
 	    ->check(cli::unnamed(CLI::ExistingPath))
 	    ->type_name("PATH");
 	sub->add_option("--label", o->labels, "a column's name, once per INPUT in order")
+	    ->allow_extra_args(false)  // --label A in1 --label B in2: A and B only
 	    ->type_name("NAME");
 	sub->add_option("--every", o->every, "use every N-th scan")
 	    ->check(wholeNumber(1, 1000000))

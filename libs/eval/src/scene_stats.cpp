@@ -34,6 +34,11 @@ void SceneStatsAccumulator::add(const std::vector<PointXYZI>& scan)
 	if (pts.empty())
 		return;
 	const raster::Plane ground = raster::fitGroundPlane(pts, raster::GroundParams{}, 1);
+	if (!ground.valid)
+	{
+		sum_.scansWithoutGround++;
+		return;
+	}
 
 	constexpr int kSide = static_cast<int>(2 * kStructureRange_m / kCell_m);
 	cv::Mat occupied(kSide, kSide, CV_32F, cv::Scalar(0));
@@ -45,8 +50,7 @@ void SceneStatsAccumulator::add(const std::vector<PointXYZI>& scan)
 		sum_.rangeShare[bin(SceneStats::kRangeEdges, r)]++;
 		intensity += p.intensity;
 		bright += p.intensity >= 0.5f;
-		// Without a plane (no ground seen), heights are taken from the sensor's level.
-		const double h = ground.valid ? ground.height(p) : p.z;
+		const double h = ground.height(p);
 		if (h < SceneStats::kGroundBand_m)
 		{
 			groundPts++;
@@ -85,7 +89,10 @@ void SceneStatsAccumulator::add(const std::vector<PointXYZI>& scan)
 SceneStats SceneStatsAccumulator::finish() const
 {
 	if (sum_.scans == 0)
-		throw std::invalid_argument("scene statistics: no scan with points");
+		throw std::invalid_argument(sum_.scansWithoutGround > 0
+		                                ? "scene statistics: no ground plane found in any of the " +
+		                                      std::to_string(sum_.scansWithoutGround) + " scans"
+		                                : std::string("scene statistics: no scan with points"));
 	SceneStats s = sum_;
 	const double n = static_cast<double>(s.scans);
 	s.points /= n;
@@ -134,6 +141,10 @@ std::string formatSceneStats(const std::vector<std::string>& labels,
 	}
 	out += "\n";
 	row("scans", [&](const SceneStats& s) { return num(static_cast<double>(s.scans), "%.0f"); });
+	if (std::any_of(stats.begin(), stats.end(),
+	                [](const SceneStats& s) { return s.scansWithoutGround > 0; }))
+		row("scans without ground (left out)", [&](const SceneStats& s)
+		    { return num(static_cast<double>(s.scansWithoutGround), "%.0f"); });
 	row("points a scan", [&](const SceneStats& s) { return num(s.points, "%.0f"); });
 	row("ground share", [&](const SceneStats& s) { return num(s.groundShare, "%.3f"); });
 	double lo = 0;

@@ -345,10 +345,17 @@ void validateScenario(const Scenario& sc)
 	need(sc.body_heave_m >= 0 && sc.body_heave_m <= 0.2, "body.heave_m", "expected in [0, 0.2]");
 	for (const auto& [name, b] : {std::pair<const char*, const EgoBox&>{"ego.body", sc.ego_body},
 	                              std::pair<const char*, const EgoBox&>{"ego.cabin", sc.ego_cabin}})
+	{
 		need(b.front_m >= 0 && b.back_m >= 0 && b.half_width_m >= 0 && b.height_m >= 0 &&
 		         b.front_m <= 10 && b.back_m <= 10 && b.half_width_m <= 5 && b.height_m <= 5,
 		     name,
 		     "expected front_m, back_m <= 10, half_width_m <= 5, height_m <= 5, none negative");
+		const bool any = b.front_m > 0 || b.back_m > 0 || b.half_width_m > 0 || b.height_m > 0;
+		need(!any || !b.empty(), name,
+		     "expected front_m + back_m, half_width_m and height_m all above 0 (a box)");
+		need(b.height_m < sc.sensor_height_m, name,
+		     "expected height_m below sensor_height_m: the lasers would sit inside the box");
+	}
 	const TownParams& t = sc.town;
 	need(t.block_size_m >= 2 * t.sidewalk_m + 10, "town.block_size_m",
 	     "expected >= 2 * sidewalk_m + 10");
@@ -363,8 +370,10 @@ void validateScenario(const Scenario& sc)
 	need(t.max_slope >= 0 && t.max_slope <= 0.15, "town.max_slope", "expected in [0, 0.15]");
 	need(t.outskirts_m >= 0, "town.outskirts_m", "expected >= 0");
 	need(t.hedge_share >= 0 && t.hedge_share <= 1, "town.hedge_share", "expected in [0, 1]");
-	need(t.signs_per_100m >= 0, "town.signs_per_100m", "expected >= 0");
-	need(t.street_furniture_per_100m >= 0, "town.street_furniture_per_100m", "expected >= 0");
+	need(t.signs_per_100m >= 0 && t.signs_per_100m <= 100, "town.signs_per_100m",
+	     "expected in [0, 100]");
+	need(t.street_furniture_per_100m >= 0 && t.street_furniture_per_100m <= 100,
+	     "town.street_furniture_per_100m", "expected in [0, 100]");
 	need(t.curb_m >= 0 && t.curb_m <= 0.3, "town.curb_m", "expected in [0, 0.3]");
 	need(t.van_share >= 0 && t.van_share <= 1, "town.van_share", "expected in [0, 1]");
 	need(t.parking_jitter_m >= 0 && t.parking_jitter_m <= 1, "town.parking_jitter_m",

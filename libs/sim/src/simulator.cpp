@@ -38,6 +38,11 @@ Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route
 	if (opt_.corner_accel_mps2 > 0 && opt_.speed_mps > 0 && !route_.empty())
 		buildSpeedProfile();
 	// The rays the carrying vehicle blocks: fixed in the sensor frame, so found once.
+	for (const EgoBox* b : {&opt_.ego_body, &opt_.ego_cabin})
+		if (!b->empty() && !(b->height_m < opt_.sensor_height_m))
+			throw std::invalid_argument(
+			    "Simulator: a box of the carrying vehicle reaches the sensor (height_m >= "
+			    "sensor_height_m): every ray would start inside it");
 	if (!opt_.ego_body.empty() || !opt_.ego_cabin.empty())
 	{
 		const int nBeams = lidar_.beamCount(), nAz = lidar_.azimuthSteps();

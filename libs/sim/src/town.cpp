@@ -340,7 +340,7 @@ void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& s
 			if (rng.chance(occupancy))
 				car = drawCar(rng);
 			// Real cars do not park on a 6 m grid: with street detail each slot's car stands up
-			// to 0.6 m off the slot's centre (its own draw, kept between sessions).
+			// to parking_jitter_m off the slot's centre (its own draw, kept between sessions).
 			double along = detail && detail->p.parking_jitter_m > 0
 			                   ? (2 * detail::eventDraw(ep.seed, kSlotOffset, id, 0) - 1) *
 			                         detail->p.parking_jitter_m
@@ -373,6 +373,12 @@ void fillSide(World& w, Rng& rng, Epochs& ep, const TownParams& p, const Side& s
 					const double u = detail::eventDraw(ep.seed, kVehicle, id, e);
 					reshape(*car, u < p.van_share ? u / p.van_share : 1,
 					        detail::eventRng(ep.seed, kVehicle, id, e));
+				}
+				// With street detail (longer vans, jitter) a car keeps within its 6 m slot.
+				if (detail)
+				{
+					const double room = std::max(0.0, (6.0 - car->len) / 2);
+					along = std::clamp(along, -room, room);
 				}
 				addCar(w, *car, side.at(s + along, -1.1), side.yaw());
 			}
@@ -472,6 +478,13 @@ World World::generate(const TownParams& p, std::uint32_t seed, const ChangeParam
 	      "change rates must be in [0, 1]");
 	check(changes.vegetation_growth >= 0 && changes.vegetation_growth <= 1,
 	      "vegetation_growth must be in [0, 1]");
+	check(p.hedge_share >= 0 && p.hedge_share <= 1, "hedge_share must be in [0, 1]");
+	check(p.signs_per_100m >= 0 && p.signs_per_100m <= 100 && p.street_furniture_per_100m >= 0 &&
+	          p.street_furniture_per_100m <= 100,
+	      "signs_per_100m and street_furniture_per_100m must be in [0, 100]");
+	check(p.curb_m >= 0 && p.curb_m <= 0.3, "curb_m must be in [0, 0.3]");
+	check(p.van_share >= 0 && p.van_share <= 1, "van_share must be in [0, 1]");
+	check(p.parking_jitter_m >= 0 && p.parking_jitter_m <= 1, "parking_jitter_m must be in [0, 1]");
 
 	Rng rng(seed);
 	World w(makeGround(p, rng), 4.0);

@@ -22,6 +22,9 @@ struct SceneStats
 	static constexpr double kGroundBand_m = 0.25;
 
 	std::size_t scans = 0;
+	/** Scans left out because no ground plane was found in them (heights above the ground
+	 *  cannot be told there). */
+	std::size_t scansWithoutGround = 0;
 	double points = 0;                    //!< a scan, mean
 	double groundShare = 0;               //!< of all points
 	std::array<double, 5> rangeShare{};   //!< of all points, by horizontal range
@@ -43,7 +46,7 @@ class SceneStatsAccumulator
 {
    public:
 	void add(const std::vector<PointXYZI>& scan);
-	/** Throws std::invalid_argument when no scan with points was added. */
+	/** Throws std::invalid_argument when no scan with points and a ground plane was added. */
 	SceneStats finish() const;
 
    private:

@@ -40,8 +40,8 @@ struct RpeResult
 	std::size_t n = 0;  //!< number of consecutive pairs
 	double trans_rmse_m = 0, trans_mean_m = 0;
 	double rot_rmse_deg = 0, rot_mean_deg = 0;
-	/** Rotation drift by axis: the frame-to-frame rotation errors (estimate against truth, as
-	 *  rotation vectors in the earlier frame: x roll, y pitch, z yaw for a vehicle frame) added
+	/** Rotation drift by axis: the frame-to-frame rotation errors (dG^-1 dE, as rotation
+	 *  vectors in the later true frame: x roll, y pitch, z yaw for a vehicle frame) added
 	 *  up, in degrees per 100 m of the ground truth's path (0 when it does not move). A bias in
 	 *  one axis shows here, where the per-frame RMS mixes it with noise. */
 	Eigen::Vector3d rot_drift_deg_per_100m = Eigen::Vector3d::Zero();
