@@ -47,33 +47,28 @@ Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route
 	{
 		const int nBeams = lidar_.beamCount(), nAz = lidar_.azimuthSteps();
 		egoBlocked_.assign(static_cast<std::size_t>(nBeams) * static_cast<std::size_t>(nAz), 0);
-		const auto meets =
-		    [&](const EgoBox& box, const Eigen::Vector3d& o, const Eigen::Vector3d& d)
+		// Each box as a shape in the sensor frame, tested by the world's own ray-shape test.
+		const auto shapeOf = [&](const EgoBox& box)
 		{
-			if (box.empty())
-				return false;
-			// Slab test against the box [-back, front] x [-hw, hw] x [-h0, top - h0].
-			const double lo[3] = {-box.back_m, -box.half_width_m, -opt_.sensor_height_m};
-			const double hi[3] = {box.front_m, box.half_width_m,
-			                      box.height_m - opt_.sensor_height_m};
-			double t0 = 0, t1 = lidar_.maxRange_m();
-			for (int i = 0; i < 3; i++)
-			{
-				if (std::abs(d[i]) < 1e-12)
-				{
-					if (o[i] < lo[i] || o[i] > hi[i])
-						return false;
-					continue;
-				}
-				double a = (lo[i] - o[i]) / d[i], b = (hi[i] - o[i]) / d[i];
-				if (a > b)
-					std::swap(a, b);
-				t0 = std::max(t0, a);
-				t1 = std::min(t1, b);
-				if (t0 > t1)
-					return false;
-			}
-			return true;
+			Shape sh;
+			sh.type = ShapeType::Box;
+			sh.cx = (box.front_m - box.back_m) / 2;
+			sh.a = (box.front_m + box.back_m) / 2;
+			sh.b = box.half_width_m;
+			sh.zmin = -opt_.sensor_height_m;
+			sh.zmax = box.height_m - opt_.sensor_height_m;
+			return sh;
+		};
+		std::vector<Shape> boxes;
+		for (const EgoBox* box : {&opt_.ego_body, &opt_.ego_cabin})
+			if (!box->empty())
+				boxes.push_back(shapeOf(*box));
+		const auto meets = [&](const Eigen::Vector3d& o, const Eigen::Vector3d& d)
+		{
+			for (const Shape& sh : boxes)
+				if (intersectShape(sh, o, d) <= lidar_.maxRange_m())
+					return true;
+			return false;
 		};
 		for (int b = 0; b < nBeams; b++)
 		{
@@ -85,8 +80,7 @@ Simulator::Simulator(std::shared_ptr<const World> world, LidarModel lidar, Route
 				const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
 				                        std::sin(el));
 				egoBlocked_[static_cast<std::size_t>(b) * static_cast<std::size_t>(nAz) +
-				            static_cast<std::size_t>(a)] =
-				    meets(opt_.ego_body, o, d) || meets(opt_.ego_cabin, o, d);
+				            static_cast<std::size_t>(a)] = meets(o, d);
 			}
 		}
 	}
