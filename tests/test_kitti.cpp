@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
 
 #include "test_json.h"
 #include "test_support.h"
@@ -168,31 +169,44 @@ TEST(Kitti, VerticalCorrectionRaisesEveryElevation)
 	EXPECT_EQ(r.exitCode, 2) << r.output;
 }
 
-TEST(Kitti, IcpRotationRefinementLowersTheRotationDrift)
+TEST(Kitti, GroundPatchesLowerTheRotationDrift)
 {
-	// The KITTI sample with the 0.205 deg vertical correction, tracked as tracking.yaml does
-	// and with odometry.params.refine: rotation (the rotation of a point-to-plane ICP of each
-	// scan on its keyframe's points). Measured (scripts/benchmark.sh, the same relative
-	// errors): rotation 0.0138 -> 0.0103 deg/m, translation 0.376 -> 0.309 %, ATE 0.044 ->
-	// 0.034 m, odometry 6.3 -> 11.0 ms a scan.
+	// The KITTI sample as recorded, tracked as tracking.yaml does with the engine's 0.205 deg
+	// beam correction and ground_model: grid (the heights of the same ground patches matched),
+	// against tracking.yaml's ground_model: plane (the two scans' RANSAC planes made parallel)
+	// and against the grid without the correction. Measured (scripts/benchmark.sh, relative errors
+	// on 10..80 m segments): plane 0.376 %, 0.0138 deg/m; grid 0.379 %, 0.0088 deg/m (KISS-ICP on
+	// the corrected scans: 0.57-0.59 %, 0.0086-0.0088); grid without the correction 0.765 %, 0.0199
+	// deg/m (the ground's cone reads as pitch).
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto D = test::sharedData("kitti00-0000-0100");
 	const test::ScopedTempDir dir("kitti");
-	const auto rawlog = (dir / "c.rawlog").string();
-	auto r =
-	    test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D + "/velodyne --poses " + D +
-	                     "/poses_semantickitti.txt --calib " + D + "/calib.txt --times " + D +
-	                     "/times.txt --compress 0 --vertical-correction-deg 0.205 -o " + rawlog);
+	const auto rawlog = (dir / "as-recorded.rawlog").string();
+	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D +
+	                          "/velodyne --poses " + D + "/poses_semantickitti.txt --calib " + D +
+	                          "/calib.txt --times " + D + "/times.txt --compress 0 -o " + rawlog);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	std::ifstream in(test::sourcePath("share/rasterslam/config/tracking.yaml"));
 	const std::string base((std::istreambuf_iterator<char>(in)), {});
-	const std::string anchor = "odometry:\n  class: rasterslam::OrbOdometry\n  params:\n";
-	ASSERT_NE(base.find(anchor), std::string::npos);
-	std::string refined = base;
-	refined.replace(refined.find(anchor), anchor.size(), anchor + "    refine: rotation\n");
+	auto with = [&](const std::string& from, const std::string& to)
+	{
+		std::string y = base;
+		const auto at = y.find(from);
+		EXPECT_NE(at, std::string::npos) << from;
+		if (at != std::string::npos)
+			y.replace(at, from.size(), to);
+		return y;
+	};
+	const std::string planes =
+	    with("vertical_correction_deg: 0 ", "vertical_correction_deg: 0.205 ");
+	const std::string corrected =
+	    std::regex_replace(planes, std::regex("ground_model: plane "), "ground_model: grid ");
+	ASSERT_NE(planes, corrected);
+	const std::string uncorrected =
+	    std::regex_replace(base, std::regex("ground_model: plane "), "ground_model: grid ");
 	std::map<std::string, std::string> results;
-	for (const auto& [name, text] :
-	     std::vector<std::pair<std::string, std::string>>{{"none", base}, {"rotation", refined}})
+	for (const auto& [name, text] : std::vector<std::pair<std::string, std::string>>{
+	         {"grid", corrected}, {"plane", planes}, {"uncorrected", uncorrected}})
 	{
 		const auto cfg = dir / (name + ".yaml");
 		std::ofstream(cfg) << text;
@@ -206,10 +220,13 @@ TEST(Kitti, IcpRotationRefinementLowersTheRotationDrift)
 		ASSERT_EQ(r.exitCode, 0) << r.output;
 		results[name] = r.output;
 	}
-	const double rreNone = test::jsonNumber(results["none"], "rel_rot_deg_per_m"),
-	             rre = test::jsonNumber(results["rotation"], "rel_rot_deg_per_m");
-	EXPECT_LT(rre, 0.0115) << results["rotation"];
-	EXPECT_LT(rre, 0.85 * rreNone) << results["none"];
-	EXPECT_LT(test::jsonNumber(results["rotation"], "rel_trans_pct"), 0.35) << results["rotation"];
-	EXPECT_LT(test::jsonNumber(results["rotation"], "ate_rmse_m"), 0.04) << results["rotation"];
+	const double rre = test::jsonNumber(results["grid"], "rel_rot_deg_per_m");
+	EXPECT_LT(rre, 0.0095) << results["grid"];
+	EXPECT_LT(test::jsonNumber(results["grid"], "rel_trans_pct"), 0.57) << results["grid"];
+	EXPECT_LT(test::jsonNumber(results["grid"], "ate_rmse_m"), 0.05) << results["grid"];
+	EXPECT_LT(rre, 0.75 * test::jsonNumber(results["plane"], "rel_rot_deg_per_m"))
+	    << results["plane"];
+	// Without the correction the same tracking is worse: the correction is what it needs.
+	EXPECT_GT(test::jsonNumber(results["uncorrected"], "rel_rot_deg_per_m"), 1.5 * rre)
+	    << results["uncorrected"];
 }

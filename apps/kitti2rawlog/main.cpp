@@ -7,6 +7,7 @@
 #include <mrpt/obs/registerAllClasses.h>
 #include <rasterslam/cli/app.h>
 #include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/core/sweep.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/rawlog_writer.h>
 #include <rasterslam/io/trajectory_io.h>
@@ -39,23 +40,6 @@ const char* kFooter =
     "with poses, a CObservationRobotPose (label GROUND_TRUTH) with the same time stamp holding "
     "the Velodyne-frame pose inv(Tr) * P_i * Tr.";
 
-/** Rotates every point by `deg` about the horizontal axis perpendicular to its azimuth,
- *  which raises its elevation angle by `deg` and keeps its range and azimuth. */
-void correctElevation(std::vector<PointXYZI>& pts, double deg)
-{
-	const double a = deg * M_PI / 180, ca = std::cos(a), sa = std::sin(a);
-	for (auto& p : pts)
-	{
-		const double rh = std::hypot(p.x, p.y);
-		if (rh < 1e-9)
-			continue;
-		// In the vertical plane of the point: (rh, z) rotated by a.
-		const double rh2 = ca * rh - sa * p.z, z2 = sa * rh + ca * p.z;
-		p.x = static_cast<float>(p.x * rh2 / rh);
-		p.y = static_cast<float>(p.y * rh2 / rh);
-		p.z = static_cast<float>(z2);
-	}
-}
 }  // namespace
 
 int main(int argc, char** argv)

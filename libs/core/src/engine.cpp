@@ -180,7 +180,9 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		sweep_.clockwise =
 		    p.getChoice("sweep_direction", sweep_.clockwise ? "cw" : "ccw", {"cw", "ccw"}) == "cw";
 		sweepPeriod_s_ = p.getDouble("sweep_period_s", sweepPeriod_s_);
+		verticalCorrection_deg_ = p.getDouble("vertical_correction_deg", verticalCorrection_deg_);
 		p.finish();
+		p.requireRange(verticalCorrection_deg_, -5, 5, "vertical_correction_deg");
 		p.requireAtLeast(minPoints_, 1, "min_points");
 		p.requirePositive(rawlogOdoSigma_m_, "rawlog_odometry_sigma_m");
 		p.requirePositive(rawlogOdoSigma_deg_, "rawlog_odometry_sigma_deg");
@@ -386,6 +388,8 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			if (!pace(s, *scan, rec))
 				continue;
 			const auto tScan = Clock::now();
+			if (verticalCorrection_deg_ != 0)
+				correctElevation(scan->points, verticalCorrection_deg_);
 			deskew(s, *scan, rec);
 			const RasterFrame* raster = rasterize(s, *scan, rec);
 			const OdometryResult odo = track(s, *scan, raster, rec);

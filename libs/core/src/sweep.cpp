@@ -74,4 +74,20 @@ void deskewSweep(std::vector<PointXYZI>& points, const Eigen::Isometry3d& T_star
 	}
 }
 
+void correctElevation(std::vector<PointXYZI>& points, double deg)
+{
+	const double a = deg * M_PI / 180, ca = std::cos(a), sa = std::sin(a);
+	for (auto& p : points)
+	{
+		const double rh = std::hypot(p.x, p.y);
+		if (rh < 1e-9)
+			continue;
+		// In the vertical plane of the point: (rh, z) rotated by a.
+		const double rh2 = ca * rh - sa * p.z, z2 = sa * rh + ca * p.z;
+		p.x = static_cast<float>(p.x * rh2 / rh);
+		p.y = static_cast<float>(p.y * rh2 / rh);
+		p.z = static_cast<float>(z2);
+	}
+}
+
 }  // namespace rasterslam

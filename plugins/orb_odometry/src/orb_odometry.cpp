@@ -10,6 +10,7 @@
 #include <rasterslam/features/rigid_ransac.h>
 #include <rasterslam/map/registration.h>
 #include <rasterslam/raster/elevation_image.h>
+#include <rasterslam/raster/ground_grid.h>
 
 #include <Eigen/Dense>
 #include <chrono>
@@ -37,6 +38,7 @@ class OrbOdometry : public Odometry
 		bool groundValid = false;  //!< the rasterizer's ground plane n.p + d = 0
 		Eigen::Vector3d groundN = Eigen::Vector3d::UnitZ();
 		double groundD = 0;
+		raster::GroundGrid grid;  //!< ground_model: grid
 	};
 	Eigen::Isometry3d alignGround(const Eigen::Isometry3d& T_ref_cur, const Frame& ref,
 	                              const Frame& cur) const;
@@ -68,6 +70,10 @@ class OrbOdometry : public Odometry
 	bool constantVelocity_ = true;
 	bool alignGround_ = true;
 	double groundMaxCorrection_deg_ = 2.0;
+	/** ground_model: plane (the two RANSAC planes made parallel) or grid (then the ground
+	 *  heights of the same patches matched, see raster/ground_grid.h). */
+	bool groundGrid_ = false;
+	raster::GroundGridParams gridParams_;
 	bool fallback_ = true;  //!< lost_fallback: icp
 	int fallbackStride_ = 4;
 	features::IcpParams icp_;
@@ -133,6 +139,16 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	constantVelocity_ = p.getBool("constant_velocity", constantVelocity_);
 	alignGround_ = p.getBool("align_ground", alignGround_);
 	groundMaxCorrection_deg_ = p.getDouble("ground_max_correction_deg", groundMaxCorrection_deg_);
+	groundGrid_ = p.getChoice("ground_model", "plane", {"plane", "grid"}) == "grid";
+	gridParams_ = raster::GroundGridParams();
+	gridParams_.cell_m = p.getDouble("ground_cell_m", gridParams_.cell_m);
+	gridParams_.radius_m = p.getDouble("ground_radius_m", gridParams_.radius_m);
+	gridParams_.stride = p.getInt("ground_stride", gridParams_.stride);
+	p.requireRange(gridParams_.cell_m, 0.05, 20, "ground_cell_m");
+	p.requireRange(gridParams_.radius_m, 1, 500, "ground_radius_m");
+	p.requireRange(gridParams_.stride, 1, 1000, "ground_stride");
+	p.require(gridParams_.radius_m / gridParams_.cell_m <= 2000, gridParams_.radius_m,
+	          "ground_radius_m", "must be at most 2000 cells (ground_cell_m) from the sensor");
 	fallback_ = p.getChoice("lost_fallback", "icp", {"icp", "none"}) == "icp";
 	const auto refine = p.getChoice("refine", "none", {"none", "rotation", "pose"});
 	refine_ =
@@ -225,6 +241,15 @@ void OrbOdometry::extract(const Scan& scan, const RasterFrame& raster, Frame& f)
 	f.groundN =
 	    Eigen::Vector3d(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
 	f.groundD = raster.groundD;
+	if (alignGround_ && groundGrid_ && raster.groundValid)
+	{
+		raster::Plane pl;
+		pl.n =
+		    Eigen::Vector3f(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
+		pl.d = raster.groundD;
+		pl.valid = true;
+		f.grid.build(scan.points, pl, gridParams_);
+	}
 	f.desc.create(static_cast<int>(keep.size()), 32, CV_8U);
 	for (int r = 0; r < static_cast<int>(keep.size()); r++)
 		desc.row(keep[r]).copyTo(f.desc.row(r));
@@ -272,7 +297,15 @@ Eigen::Isometry3d OrbOdometry::alignGround(const Eigen::Isometry3d& T, const Fra
 		return T;
 	const auto aligned = raster::alignGroundPlanes(T, ref.groundN, ref.groundD, cur.groundN,
 	                                               cur.groundD, groundMaxCorrection_deg_);
-	return aligned ? *aligned : T;  // none: a slope change
+	const Eigen::Isometry3d start = aligned ? *aligned : T;  // none: a slope change
+	if (!groundGrid_)
+		return start;
+	// The planes are the best planes through each scan's own surroundings; the same patches
+	// of ground seen from both scans decide what is left (a change of slope or camber).
+	raster::GroundAlignParams gp;
+	gp.maxCorrection_deg = groundMaxCorrection_deg_;
+	const auto g = raster::alignGroundGrids(start, ref.grid, cur.grid, gp);
+	return g.ok ? g.T : start;
 }
 
 Keyframe::Ptr OrbOdometry::keyframeOf(const Frame& f) const

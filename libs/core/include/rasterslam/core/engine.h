@@ -260,6 +260,8 @@ class Engine : public mrpt::system::COutputLogger
 	bool stampOrderError_ = false;
 	double realtimeMaxWait_s_ = 5.0;
 	bool deskew_ = false;
+	/** engine.vertical_correction_deg: every scan's beams raised by this (0: as read). */
+	double verticalCorrection_deg_ = 0;
 	SweepModel sweep_;
 	double sweepPeriod_s_ = 0;  //!< 0: the time between scans
 };

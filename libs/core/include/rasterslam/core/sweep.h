@@ -46,4 +46,10 @@ Eigen::Isometry3d scaleMotion(const Eigen::Isometry3d& motion, double s);
 void deskewSweep(std::vector<PointXYZI>& points, const Eigen::Isometry3d& T_start_end,
                  const SweepModel& model);
 
+/** Rotates every point by `deg` about the horizontal axis perpendicular to its azimuth, which
+ *  raises its elevation angle by `deg` and keeps its range and azimuth: the correction of a
+ *  sensor whose beams are all tilted by the same angle (KITTI's HDL-64E scans read 0.205 deg
+ *  low, so the ground looks like a shallow cone around the sensor). */
+void correctElevation(std::vector<PointXYZI>& points, double deg);
+
 }  // namespace rasterslam
