@@ -571,11 +571,17 @@ TEST(Deskew, SweepsTakenWhileMovingAreTrackedBetterDeskewed)
 		gt.push_back({simu.stamp(k), toEigen(simu.sensorPose(k))});
 	std::map<std::string, eval::KittiRelativeResult> rel;
 	std::map<std::string, double> ate;
-	for (const std::string mode : {"none", "constant_velocity"})
+	// Also with the ground grid (odometry ground_model: grid) and deskew: planar (the last
+	// step's translation and yaw; its roll and pitch would put the estimate's noise into the
+	// ground the grid compares). Measured: RTE 0.96 %, RRE 0.0100 deg/m, ATE 0.24 m; with
+	// constant_velocity the grid drifts in roll (2.15 %), with planar the planes 1.30 %.
+	for (const std::string mode : {"none", "constant_velocity", "grid+planar"})
 	{
 		auto cfg = mrpt::containers::yaml::FromFile(
 		    test::sourcePath("share/rasterslam/config/tracking.yaml"));
-		cfg["engine"]["deskew"] = mode;
+		cfg["engine"]["deskew"] = mode == "grid+planar" ? std::string("planar") : mode;
+		if (mode == "grid+planar")
+			cfg["odometry"]["params"]["ground_model"] = std::string("grid");
 		Engine e(cfg, "tracking.yaml");
 		SimScans src(simu, n);
 		const auto res = e.run(src, {});
@@ -596,6 +602,11 @@ TEST(Deskew, SweepsTakenWhileMovingAreTrackedBetterDeskewed)
 	EXPECT_LT(on.t_err_pct, 0.7 * off.t_err_pct);
 	EXPECT_LT(on.r_err_deg_per_m, 0.8 * off.r_err_deg_per_m);
 	EXPECT_LT(ate["constant_velocity"], 0.5 * ate["none"]);
+	const auto& grid = rel["grid+planar"];
+	EXPECT_LT(grid.t_err_pct, 1.2);
+	EXPECT_LT(grid.t_err_pct, on.t_err_pct);
+	EXPECT_LT(grid.r_err_deg_per_m, 0.015);
+	EXPECT_LT(ate["grid+planar"], 0.35);
 }
 
 TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)

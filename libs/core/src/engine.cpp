@@ -174,8 +174,13 @@ Engine::Engine(const yaml& cfg, const std::string& configSource)
 		anchorHitSpacing_s_ = p.getDouble("anchor_hit_spacing_s", anchorHitSpacing_s_);
 		stampOrderError_ = p.getChoice("stamp_order", "warn", {"warn", "error"}) == "error";
 		realtimeMaxWait_s_ = p.getDouble("realtime_max_wait_s", realtimeMaxWait_s_);
-		deskew_ = p.getChoice("deskew", deskew_ ? "constant_velocity" : "none",
-		                      {"none", "constant_velocity"}) == "constant_velocity";
+		{
+			const auto mode = p.getChoice(
+			    "deskew", deskew_ ? (deskewPlanar_ ? "planar" : "constant_velocity") : "none",
+			    {"none", "constant_velocity", "planar"});
+			deskew_ = mode != "none";
+			deskewPlanar_ = mode == "planar";
+		}
 		sweep_.startAzimuth_deg = p.getDouble("sweep_start_azimuth_deg", sweep_.startAzimuth_deg);
 		sweep_.clockwise =
 		    p.getChoice("sweep_direction", sweep_.clockwise ? "cw" : "ccw", {"cw", "ccw"}) == "cw";
@@ -606,7 +611,13 @@ void Engine::deskew(RunState& s, Scan& scan, ScanRecord& rec)
 	    Eigen::Isometry3d(
 	        s.lastStep->getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen()),
 	    period / s.lastStepDt);
-	deskewSweep(scan.points, M, sweep_);
+	Eigen::Isometry3d motion = M;
+	if (deskewPlanar_)
+	{
+		const double yaw = std::atan2(M.linear()(1, 0), M.linear()(0, 0));
+		motion.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+	}
+	deskewSweep(scan.points, motion, sweep_);
 	rec.ms.rasterize += msSince(t0);
 }
 

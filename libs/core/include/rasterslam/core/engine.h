@@ -260,6 +260,10 @@ class Engine : public mrpt::system::COutputLogger
 	bool stampOrderError_ = false;
 	double realtimeMaxWait_s_ = 5.0;
 	bool deskew_ = false;
+	/** engine.deskew: planar: the last step's translation and yaw only (its roll and pitch
+	 *  over a sweep are mostly the estimate's noise, which de-skewing would put into the
+	 *  ground). */
+	bool deskewPlanar_ = false;
 	/** engine.vertical_correction_deg: every scan's beams raised by this (0: as read). */
 	double verticalCorrection_deg_ = 0;
 	SweepModel sweep_;
