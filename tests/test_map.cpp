@@ -48,6 +48,9 @@ LocalMap::Ptr makeLocalMap(uint64_t id, std::vector<uint64_t> kfs, std::mt19937&
 	lm->baTracks = 17;
 	lm->baInitialRms_m = 0.12f;
 	lm->baFinalRms_m = 0.05f;
+	std::uniform_int_distribution<int> cm(-3000, 3000);
+	for (int i = 0; i < 3 * 40; i++)
+		lm->surfaceCm.push_back(static_cast<int16_t>(cm(rng)));
 	return lm;
 }
 
@@ -91,8 +94,12 @@ TEST(MapModel, LocalMapRoundTripAndVersion)
 	other = *lm;
 	other.observers[3] ^= 8;
 	EXPECT_FALSE(other == *lm);  // operator== looks at the observers
+	other = *lm;
+	other.surfaceCm[5] += 1;
+	EXPECT_FALSE(other == *lm);  // ...and at the surface
+	EXPECT_EQ(back->surfacePoints(), 40u);
 
-	setVersion(buf, "rasterslam::LocalMap", 0, 7);
+	setVersion(buf, "rasterslam::LocalMap", 1, 7);
 	auto a = mrpt::serialization::archiveFrom(buf);
 	EXPECT_ANY_THROW(a.ReadObject());
 
@@ -105,6 +112,34 @@ TEST(MapModel, LocalMapRoundTripAndVersion)
 	bad2.keyframes.clear();
 	mrpt::io::CMemoryStream b3;
 	EXPECT_ANY_THROW(roundTrip(bad2, b3));
+	LocalMap bad3 = *lm;
+	bad3.surfaceCm.pop_back();
+	mrpt::io::CMemoryStream b4;
+	EXPECT_ANY_THROW(roundTrip(bad3, b4));
+}
+
+TEST(MapModel, LocalMapOfVersion0LoadsWithoutSurface)
+{
+	// Maps written before the surfaces (version 0) still load: the same stream without the
+	// surface's length (the last field, before MRPT's end-of-object byte) and with version 0.
+	std::mt19937 rng(8);
+	auto lm = makeLocalMap(5, {20, 21}, rng);
+	lm->surfaceCm.clear();
+	mrpt::io::CMemoryStream buf;
+	mrpt::serialization::archiveFrom(buf) << *lm;
+	setVersion(buf, "rasterslam::LocalMap", 1, 0);
+	const auto* p = static_cast<const uint8_t*>(buf.getRawBufferData());
+	std::vector<uint8_t> v0(p, p + buf.getTotalBytesCount());
+	ASSERT_GE(v0.size(), 5u);
+	ASSERT_EQ(v0[v0.size() - 5], 0u);  // the empty surface's length, 4 bytes of 0
+	v0.erase(v0.end() - 5, v0.end() - 1);
+	mrpt::io::CMemoryStream in;
+	in.assignMemoryNotOwn(v0.data(), v0.size());
+	const auto back =
+	    std::dynamic_pointer_cast<LocalMap>(mrpt::serialization::archiveFrom(in).ReadObject());
+	ASSERT_TRUE(back);
+	EXPECT_TRUE(*back == *lm);
+	EXPECT_EQ(back->surfacePoints(), 0u);
 }
 
 TEST(MapModel, DamagedOnlineFlagIsRefusedNotUndefined)

@@ -19,14 +19,14 @@ RASTERSLAM_REGISTER_CLASSES(register_rasterslam_map_classes)
 
 uint8_t LocalMap::serializeGetVersion() const
 {
-	return 0;
+	return 1;
 }
 
 void LocalMap::serializeTo(mrpt::serialization::CArchive& out) const
 {
 	out << id << session << keyframes << createdStamp << updatedStamp << online << xyz
 	    << descriptors << observers << imagePng << imageResolution_m << imageExtent_m << baTracks
-	    << baInitialRms_m << baFinalRms_m;
+	    << baInitialRms_m << baFinalRms_m << surfaceCm;
 }
 
 void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -34,6 +34,7 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	switch (version)
 	{
 		case 0:
+		case 1:
 		{
 			// The flag as its byte: a bool read from a damaged file could hold any value (found
 			// by fuzz_map_store: undefined behaviour when used).
@@ -45,6 +46,9 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 				THROW_EXCEPTION(mrpt::format("rasterslam::LocalMap: online flag %u is not 0 or 1",
 				                             static_cast<unsigned>(onlineByte)));
 			online = onlineByte != 0;
+			surfaceCm.clear();
+			if (version >= 1)
+				in >> surfaceCm;
 			break;
 		}
 		default:
@@ -53,6 +57,9 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	const std::size_t n = observers.size();
 	if (xyz.size() != 3 * n || descriptors.size() != 32 * n)
 		THROW_EXCEPTION("rasterslam::LocalMap: inconsistent point arrays in the stream");
+	if (surfaceCm.size() % 3 != 0)
+		THROW_EXCEPTION(
+		    "rasterslam::LocalMap: surface coordinates are not a whole number of points");
 	if (keyframes.empty() || keyframes.size() > kMaxKeyframes)
 		THROW_EXCEPTION(mrpt::format("rasterslam::LocalMap %llu: %zu keyframes (expected 1..%zu)",
 		                             static_cast<unsigned long long>(id), keyframes.size(),
@@ -70,7 +77,7 @@ int LocalMap::keyframeIndex(uint64_t kf) const
 std::size_t LocalMap::memoryBytes() const
 {
 	return sizeof(*this) + keyframes.capacity() * 8 + xyz.capacity() * 4 + descriptors.capacity() +
-	       observers.capacity() * 4 + imagePng.capacity();
+	       observers.capacity() * 4 + imagePng.capacity() + surfaceCm.capacity() * 2;
 }
 
 bool LocalMap::operator==(const LocalMap& o) const
@@ -80,7 +87,8 @@ bool LocalMap::operator==(const LocalMap& o) const
 	       xyz == o.xyz && descriptors == o.descriptors && observers == o.observers &&
 	       imagePng == o.imagePng && imageResolution_m == o.imageResolution_m &&
 	       imageExtent_m == o.imageExtent_m && baTracks == o.baTracks &&
-	       baInitialRms_m == o.baInitialRms_m && baFinalRms_m == o.baFinalRms_m;
+	       baInitialRms_m == o.baInitialRms_m && baFinalRms_m == o.baFinalRms_m &&
+	       surfaceCm == o.surfaceCm;
 }
 
 uint8_t LocalMapGraph::serializeGetVersion() const

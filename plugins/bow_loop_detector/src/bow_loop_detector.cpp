@@ -46,6 +46,13 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	guidedGate_deg_ = p.getDouble("guided_gate_deg", guidedGate_deg_);
 	guidedMinInliers_ = p.getInt("guided_min_inliers", guidedMinInliers_);
 	guidedMaxCandidates_ = p.getInt("guided_max_candidates", guidedMaxCandidates_);
+	icpRefine_ = p.getBool("icp_refine", icpRefine_);
+	icp_.voxel_m = p.getDouble("icp_voxel_m", 0.8);
+	icpRange_m_ = p.getDouble("icp_range_m", icpRange_m_);
+	icp_.maxCorrespondence_m = p.getDouble("icp_max_distance_m", 1.0);
+	icp_.maxIterations = p.getInt("icp_max_iterations", 30);
+	icpMaxCorrection_m_ = p.getDouble("icp_max_correction_m", icpMaxCorrection_m_);
+	icpMaxCorrection_deg_ = p.getDouble("icp_max_correction_deg", icpMaxCorrection_deg_);
 	p.requirePositive(searchRadius_m_, "search_radius_m");
 	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
 	p.requireAtLeast(onlineBranching_, 2, "online_branching");
@@ -69,6 +76,12 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireRange(guidedGate_deg_, 0, 180, "guided_gate_deg");
 	p.requireAtLeast(guidedMinInliers_, 3, "guided_min_inliers");
 	p.requireAtLeast(guidedMaxCandidates_, 1, "guided_max_candidates");
+	p.requireRange(icp_.voxel_m, 0.05, 5.0, "icp_voxel_m");
+	p.requireRange(icpRange_m_, 1.0, 150.0, "icp_range_m");
+	p.requirePositive(icp_.maxCorrespondence_m, "icp_max_distance_m");
+	p.requireRange(icp_.maxIterations, 1, 1000, "icp_max_iterations");
+	p.requirePositive(icpMaxCorrection_m_, "icp_max_correction_m");
+	p.requireRange(icpMaxCorrection_deg_, 0, 180, "icp_max_correction_deg");
 
 	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);
 	vocab_.reset();
@@ -323,7 +336,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		    "rasterslam::OrbOdometry)");
 	std::vector<LoopConstraint> out;
 	const std::size_t decisionsBefore = decisions_.size();
-	const Query q = queryOf(*kf.data);
+	Query q = queryOf(*kf.data);
 	const std::size_t n = kf.data->size();
 
 	if (!retiring_.empty())
@@ -379,6 +392,23 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	if (kf.inMapFrame && map.sessions > 1 && guidedRadius_m_ > 0 && !bestEarlier && n > 0)
 		if (auto g = guidedSearch(q, kf, map, poses))
 			out.push_back(*g);
+	// The surface is made only for a loop found (most keyframes find none).
+	if (best && icpRefine_ && kf.scan)
+		q.surface = surfaceOf(*kf.scan);
+	if (best && !q.surface.empty())
+		if (const auto lm = candidate(map, best->localMap))
+		{
+			const auto T_anchor_from = poses.at(best->from) - poses.at(lm->anchor());
+			Eigen::Isometry3d T = toIsometry(T_anchor_from + best->T_from_to);
+			if (refineOnSurface(q, *lm, T))
+			{
+				best->from = nearestKeyframe(*lm, T, poses);
+				const auto T_anchor_kf = poses.at(best->from) - poses.at(lm->anchor());
+				best->T_from_to = (mrpt::poses::CPose3D() - T_anchor_kf) + toPose(T);
+				decisions_[bestDecision].T_candidate_query = best->T_from_to;
+				decisions_[bestDecision].candidateStamp = map.keyframes.at(best->from)->stamp;
+			}
+		}
 	if (best)
 	{
 		decisions_[bestDecision].accepted = true;

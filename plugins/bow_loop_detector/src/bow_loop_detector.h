@@ -8,6 +8,7 @@
 #include <rasterslam/bow/vocabulary.h>
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/features/icp.h>
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/rigid_ransac.h>
@@ -59,7 +60,19 @@ class BowLoopDetector : public LoopDetector
 		double groundD = 0;
 		/** direct_index_levels_up > 0: the vocabulary node of each feature. */
 		std::vector<uint32_t> groups;
+		/** icp_refine: the query's scan reduced to one point a voxel (its frame), when known. */
+		std::vector<Eigen::Vector3f> surface;
 	};
+	/** icp_refine: a scan's points within surface range, one a voxel. */
+	std::vector<Eigen::Vector3f> surfaceOf(const Scan& scan) const;
+	/** icp_refine: T_anchor_query refined by point-to-plane ICP of the query's surface on the
+	 *  local map's (both kept). Unchanged, false, when either has none, ICP does not converge,
+	 *  or it would move the pose more than icp_max_correction_m / icp_max_correction_deg (the
+	 *  two disagree: the features' registration is kept). */
+	bool refineOnSurface(const Query& q, const LocalMap& lm, Eigen::Isometry3d& T) const;
+	bool icpRefine_ = false;
+	features::IcpParams icp_;
+	double icpRange_m_ = 40, icpMaxCorrection_m_ = 1.0, icpMaxCorrection_deg_ = 3.0;
 	/** A keyframe's features and ground plane as a query. */
 	Query queryOf(const Keyframe& k) const;
 	/** The vocabulary node `directLevels_` levels above the leaves of each descriptor row. */

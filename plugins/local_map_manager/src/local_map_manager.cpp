@@ -5,6 +5,7 @@
 #include <mrpt/core/initializer.h>
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/features/icp.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/map/registration.h>
 #include <rasterslam/mapping/local_ba.h>
@@ -45,6 +46,9 @@ class LocalMapManager : public MapManager
    private:
 	/** Finishes the open local map; `continues`: the next one starts from its last keyframe. */
 	void finishOpen(const PoseView& poses, MappingUpdate& up, bool continues);
+	/** The keyframes' surfaces in the anchor frame (poses T), one point a voxel, in cm. */
+	std::vector<int16_t> surfaceOf(const std::vector<uint64_t>& ids,
+	                               const std::vector<Eigen::Isometry3d>& T) const;
 	/** Drops what a keyframe no longer needs once all its local maps are finished. */
 	void release(uint64_t kf);
 	/** Paper, "Map Management / Culling": local maps farther along the route than
@@ -72,6 +76,9 @@ class LocalMapManager : public MapManager
 	bool cullOnLoop_ = true;
 	bool indexReplaced_ = false;  //!< local maps replaced on a revisit keep their place-index entry
 	int maxOnlineMaps_ = 64;
+	/** Surfaces kept with each local map for refining registrations (0: none). */
+	double surfaceVoxel_m_ = 0;
+	double surfaceRange_m_ = 40;
 	std::string offlineDir_;
 	bool ownOfflineDir_ = false;  //!< a temporary folder of this run, removed at the end
 
@@ -83,6 +90,8 @@ class LocalMapManager : public MapManager
 	std::optional<uint64_t>
 	    lastLocalMap_;  //!< the previous local map, when the open one continues it
 	std::map<uint64_t, std::vector<PointXYZI>> clouds_;  //!< non-ground points of open keyframes
+	/** surface_voxel_m > 0: each open keyframe's scan reduced to one point a voxel. */
+	std::map<uint64_t, std::vector<Eigen::Vector3f>> surfaces_;
 	std::vector<uint64_t>
 	    pendingLoops_;  //!< local maps a keyframe of the open map closed a loop with
 	std::vector<uint64_t>
@@ -133,6 +142,12 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	indexReplaced_ = p.getBool("index_replaced", indexReplaced_);
 	maxOnlineMaps_ = p.getInt("max_online_maps", maxOnlineMaps_);
 	offlineDir_ = p.getString("offline_dir", "");
+	surfaceVoxel_m_ = p.getDouble("surface_voxel_m", surfaceVoxel_m_);
+	surfaceRange_m_ = p.getDouble("surface_range_m", surfaceRange_m_);
+	p.require(surfaceVoxel_m_ >= 0, surfaceVoxel_m_, "surface_voxel_m", "must be >= 0 (0: none)");
+	if (surfaceVoxel_m_ > 0 && surfaceVoxel_m_ < 0.05)
+		p.reject("surface_voxel_m", "must be at least 0.05 m (the surface is stored in cm)");
+	p.requireRange(surfaceRange_m_, 1.0, 150.0, "surface_range_m");
 	p.require(cullDistance_m_ >= 0, cullDistance_m_, "cull_distance_m", "must be >= 0 (0: never)");
 	p.require(maxOnlineMaps_ >= 0, maxOnlineMaps_, "max_online_maps", "must be >= 0 (0: no bound)");
 	p.requireRange(keyframesPerMap_, 1, static_cast<double>(LocalMap::kMaxKeyframes),
@@ -155,6 +170,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	session_ = 0;
 	open_.clear();
 	clouds_.clear();
+	surfaces_.clear();
 	pendingLoops_.clear();
 	pendingRelocs_.clear();
 	lastLocalMap_.reset();
@@ -299,6 +315,16 @@ MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& s
 		for (const auto idx : raster->pixelToPoint)
 			if (idx >= 0)
 				cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
+	if (surfaceVoxel_m_ > 0)
+	{
+		std::vector<Eigen::Vector3f> near;
+		near.reserve(scan.points.size());
+		const float r2 = static_cast<float>(surfaceRange_m_ * surfaceRange_m_);
+		for (const auto& q : scan.points)
+			if (q.x * q.x + q.y * q.y + q.z * q.z <= r2)
+				near.emplace_back(q.x, q.y, q.z);
+		surfaces_[k->id] = features::voxelDownsample(near, surfaceVoxel_m_);
+	}
 
 	MappingUpdate up;
 	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.
@@ -356,6 +382,7 @@ void LocalMapManager::loopAccepted(uint64_t fromKf, uint64_t /*toKf*/, double /*
 void LocalMapManager::release(uint64_t kf)
 {
 	clouds_.erase(kf);
+	surfaces_.erase(kf);
 	if (const auto it = map_.keyframes.find(kf); it != map_.keyframes.end())
 		it->second->releaseFeatures();
 }
@@ -457,6 +484,8 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	}
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
+	if (surfaceVoxel_m_ > 0)
+		lm->surfaceCm = surfaceOf(ids, T);
 	MappingUpdate::Finished fin;
 	fin.localMap = lm->id;
 	fin.imageDescriptors = wordsOfImage(img.image.asCvMatRef());
@@ -515,6 +544,31 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		for (const auto id : ids)
 			release(id);
 	}
+}
+
+std::vector<int16_t> LocalMapManager::surfaceOf(const std::vector<uint64_t>& ids,
+                                                const std::vector<Eigen::Isometry3d>& T) const
+{
+	std::vector<Eigen::Vector3f> all;
+	for (std::size_t i = 0; i < ids.size(); i++)
+		if (const auto it = surfaces_.find(ids[i]); it != surfaces_.end())
+		{
+			const Eigen::Isometry3f Tf = T[i].cast<float>();
+			for (const auto& q : it->second)
+				all.push_back(Tf * q);
+		}
+	const auto merged = features::voxelDownsample(all, surfaceVoxel_m_);
+	std::vector<int16_t> out;
+	out.reserve(3 * merged.size());
+	constexpr float kMax = 32767.f / 100.f;
+	for (const auto& p : merged)
+	{
+		if (!p.allFinite() || p.cwiseAbs().maxCoeff() > kMax)
+			continue;  // beyond what 16 bits of cm hold: a local map is far smaller
+		for (int a = 0; a < 3; a++)
+			out.push_back(static_cast<int16_t>(std::lround(p[a] * 100.f)));
+	}
+	return out;
 }
 
 void LocalMapManager::loadMap(const std::string& dir)

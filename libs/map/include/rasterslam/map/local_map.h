@@ -44,6 +44,14 @@ class LocalMap : public mrpt::serialization::CSerializable
 	float imageResolution_m = 0;  //!< metres a pixel, 0 for the pinhole image
 	float imageExtent_m = 0;      //!< the image covers +-extent around the anchor
 
+	/** The local map's surfaces: its keyframes' whole scans (ground included) reduced to
+	 *  one point a voxel, in the anchor frame, 3 coordinates a point in centimetres (16 bits:
+	 *  within 327 m of the anchor). What a registration found on the features is refined on
+	 *  (ICP); empty when the map manager keeps none (`surface_voxel_m: 0`) or the map was
+	 *  written before version 1. */
+	std::vector<int16_t> surfaceCm;
+	std::size_t surfacePoints() const { return surfaceCm.size() / 3; }
+
 	/** Local BA figures, for run reports. */
 	uint32_t baTracks = 0;
 	float baInitialRms_m = 0, baFinalRms_m = 0;
