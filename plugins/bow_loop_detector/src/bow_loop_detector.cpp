@@ -392,23 +392,9 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	if (kf.inMapFrame && map.sessions > 1 && guidedRadius_m_ > 0 && !bestEarlier && n > 0)
 		if (auto g = guidedSearch(q, kf, map, poses))
 			out.push_back(*g);
-	// The surface is made only for a loop found (most keyframes find none).
-	if (best && icpRefine_ && kf.scan)
-		q.surface = surfaceOf(*kf.scan);
-	if (best && !q.surface.empty())
-		if (const auto lm = candidate(map, best->localMap))
-		{
-			const auto T_anchor_from = poses.at(best->from) - poses.at(lm->anchor());
-			Eigen::Isometry3d T = toIsometry(T_anchor_from + best->T_from_to);
-			if (refineOnSurface(q, *lm, T))
-			{
-				best->from = nearestKeyframe(*lm, T, poses);
-				const auto T_anchor_kf = poses.at(best->from) - poses.at(lm->anchor());
-				best->T_from_to = (mrpt::poses::CPose3D() - T_anchor_kf) + toPose(T);
-				decisions_[bestDecision].T_candidate_query = best->T_from_to;
-				decisions_[bestDecision].candidateStamp = map.keyframes.at(best->from)->stamp;
-			}
-		}
+	// Refined on the surfaces (the scan made into a surface only for a loop found).
+	if (best)
+		refineLoop(*best, decisions_[bestDecision], q, kf, map, poses);
 	if (best)
 	{
 		decisions_[bestDecision].accepted = true;

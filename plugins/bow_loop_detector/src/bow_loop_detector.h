@@ -66,10 +66,16 @@ class BowLoopDetector : public LoopDetector
 	/** icp_refine: a scan's points within surface range, one a voxel. */
 	std::vector<Eigen::Vector3f> surfaceOf(const Scan& scan) const;
 	/** icp_refine: T_anchor_query refined by point-to-plane ICP of the query's surface on the
-	 *  local map's (both kept). Unchanged, false, when either has none, ICP does not converge,
-	 *  or it would move the pose more than icp_max_correction_m / icp_max_correction_deg (the
-	 *  two disagree: the features' registration is kept). */
-	bool refineOnSurface(const Query& q, const LocalMap& lm, Eigen::Isometry3d& T) const;
+	 *  local map's. Unchanged, false, when either has none, ICP does not converge, or it would
+	 *  move the pose more than icp_max_correction_m / icp_max_correction_deg (the two
+	 *  disagree: the features' registration is kept). */
+	bool refineOnSurface(const std::vector<Eigen::Vector3f>& surface, const LocalMap& lm,
+	                     Eigen::Isometry3d& T) const;
+	/** icp_refine: a loop found for keyframe kf refined on its candidate's surface (the
+	 *  keyframe's scan made into a surface here, when kf has one), its height then taken from
+	 *  the ground planes, and its decision line updated. */
+	void refineLoop(LoopConstraint& c, LoopDecision& d, const Query& q, const KeyframeInfo& kf,
+	                const Map& map, const PoseView& poses);
 	bool icpRefine_ = false;
 	features::IcpParams icp_;
 	double icpRange_m_ = 40, icpMaxCorrection_m_ = 1.0, icpMaxCorrection_deg_ = 3.0;

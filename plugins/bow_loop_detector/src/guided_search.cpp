@@ -103,6 +103,7 @@ std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, cons
 	}
 	if (best)
 	{
+		refineLoop(*best, decisions_[bestDecision], q, kf, map, poses);
 		decisions_[bestDecision].accepted = true;
 		MRPT_LOG_INFO_FMT(
 		    "guided loop: keyframe %llu (t=%.2f) -> keyframe %llu of an earlier "

@@ -169,7 +169,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			res.inliers = std::max(res.inliers, fit.inliers.size());
 		}
 	}
-	if (bestMap && refineOnSurface(q, *bestMap, bestT))
+	if (bestMap && refineOnSurface(q.surface, *bestMap, bestT))
 	{
 		res.keyframe = nearestKeyframe(*bestMap, bestT, poses);
 		// Height from the two ground planes again, as before the refinement: on the rendered

@@ -20,10 +20,10 @@ std::vector<Eigen::Vector3f> BowLoopDetector::surfaceOf(const Scan& scan) const
 	return features::voxelDownsample(near, icp_.voxel_m);
 }
 
-bool BowLoopDetector::refineOnSurface(const Query& q, const LocalMap& lm,
-                                      Eigen::Isometry3d& T) const
+bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surface,
+                                      const LocalMap& lm, Eigen::Isometry3d& T) const
 {
-	if (!icpRefine_ || q.surface.empty() || lm.surfacePoints() < 100)
+	if (!icpRefine_ || surface.empty() || lm.surfacePoints() < 100)
 		return false;
 	const auto t0 = std::chrono::steady_clock::now();
 	std::vector<Eigen::Vector3f> target;
@@ -33,7 +33,7 @@ bool BowLoopDetector::refineOnSurface(const Query& q, const LocalMap& lm,
 		                    lm.surfaceCm[i + 2] * 0.01f);
 	const features::IcpTarget tgt(target, icp_);
 	const auto t1 = std::chrono::steady_clock::now();
-	const auto r = features::icpPointToPlane(q.surface, tgt, T, icp_);
+	const auto r = features::icpPointToPlane(surface, tgt, T, icp_);
 	const auto t2 = std::chrono::steady_clock::now();
 	const Eigen::Isometry3d delta = T.inverse() * r.T;
 	const double moved = delta.translation().norm();
@@ -43,10 +43,32 @@ bool BowLoopDetector::refineOnSurface(const Query& q, const LocalMap& lm,
 	    "surface refinement on local map %llu: %s, %d iterations, moved %.3f m %.2f deg, overlap "
 	    "%.2f; %zu and %zu points, %.1f + %.1f ms",
 	    static_cast<unsigned long long>(lm.id), ok ? "taken" : "refused", r.iterations, moved,
-	    turned, r.overlap, q.surface.size(), tgt.size(),
+	    turned, r.overlap, surface.size(), tgt.size(),
 	    std::chrono::duration<double, std::milli>(t1 - t0).count(),
 	    std::chrono::duration<double, std::milli>(t2 - t1).count());
 	if (ok)
 		T = r.T;
 	return ok;
+}
+
+void BowLoopDetector::refineLoop(LoopConstraint& c, LoopDecision& d, const Query& q,
+                                 const KeyframeInfo& kf, const Map& map, const PoseView& poses)
+{
+	if (!icpRefine_ || !kf.scan)
+		return;
+	const auto lm = candidate(map, c.localMap);
+	if (!lm || lm->surfacePoints() == 0)
+		return;
+	const auto T_anchor_from = poses.at(c.from) - poses.at(lm->anchor());
+	Eigen::Isometry3d T = toIsometry(T_anchor_from + c.T_from_to);
+	if (!refineOnSurface(surfaceOf(*kf.scan), *lm, T))
+		return;
+	c.from = nearestKeyframe(*lm, T, poses);
+	double tilt = 0;
+	if (const auto g = groundAligned(q, *lm, c.from, T, map, poses, &tilt))
+		T = *g;
+	const auto T_anchor_kf = poses.at(c.from) - poses.at(lm->anchor());
+	c.T_from_to = (mrpt::poses::CPose3D() - T_anchor_kf) + toPose(T);
+	d.T_candidate_query = c.T_from_to;
+	d.candidateStamp = map.keyframes.at(c.from)->stamp;
 }
