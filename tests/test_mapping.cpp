@@ -102,6 +102,25 @@ TEST(Mapping, LocalMapsOverlapAndCarryTheOptimizedPoses)
 		EXPECT_EQ(lm->points(), map.saved.at(id).points);
 		EXPECT_GT(lm->points(), 100u);
 		EXPECT_FALSE(lm->imagePng.empty());
+		// slam.yaml keeps the keyframes' surfaces (surface_voxel_m: 0.5) in the anchor's
+		// frame: the map points (features, also in that frame) lie on them.
+		ASSERT_GT(lm->surfacePoints(), 1000u) << "local map " << id;
+		std::size_t onSurface = 0;
+		for (std::size_t i = 0; i < lm->points(); i++)
+		{
+			const Eigen::Vector3f p(lm->xyz[3 * i], lm->xyz[3 * i + 1], lm->xyz[3 * i + 2]);
+			for (std::size_t k = 0; k < lm->surfaceCm.size(); k += 3)
+				if ((Eigen::Vector3f(lm->surfaceCm[k], lm->surfaceCm[k + 1], lm->surfaceCm[k + 2]) *
+				         0.01f -
+				     p)
+				        .squaredNorm() < 0.5f * 0.5f)
+				{
+					++onSurface;
+					break;
+				}
+		}
+		EXPECT_GT(static_cast<double>(onSurface), 0.8 * static_cast<double>(lm->points()))
+		    << "local map " << id;
 		if (prev)
 		{
 			EXPECT_EQ(lm->keyframes.front(), prev->keyframes.back()) << "local map " << id;
