@@ -65,6 +65,8 @@ class BowLoopDetector : public LoopDetector
 	};
 	/** icp_refine: a scan's points within surface range, one a voxel. */
 	std::vector<Eigen::Vector3f> surfaceOf(const Scan& scan) const;
+	/** A local map's surface in its anchor frame, in metres. */
+	static std::vector<Eigen::Vector3f> surfaceOf(const LocalMap& lm);
 	/** icp_refine: T_anchor_query refined by point-to-plane ICP of the query's surface on the
 	 *  local map's. Unchanged, false, when either has none, ICP does not converge, or it would
 	 *  move the pose more than icp_max_correction_m / icp_max_correction_deg (the two

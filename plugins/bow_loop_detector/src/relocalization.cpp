@@ -76,9 +76,7 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 	if (directLevels_ > 0)
 		q.groups = groupsOf(q.desc);
 	if (icpRefine_ && onlyKeyframe < 0)
-		for (std::size_t i = 0; i < query.surfaceCm.size(); i += 3)
-			q.surface.emplace_back(query.surfaceCm[i] * 0.01f, query.surfaceCm[i + 1] * 0.01f,
-			                       query.surfaceCm[i + 2] * 0.01f);
+		q.surface = surfaceOf(query);
 	return relocalizeQuery(q, static_cast<uint32_t>(query.id * 29 + 7 + onlyKeyframe), map, poses);
 }
 

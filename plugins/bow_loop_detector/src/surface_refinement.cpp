@@ -20,18 +20,23 @@ std::vector<Eigen::Vector3f> BowLoopDetector::surfaceOf(const Scan& scan) const
 	return features::voxelDownsample(near, icp_.voxel_m);
 }
 
+std::vector<Eigen::Vector3f> BowLoopDetector::surfaceOf(const LocalMap& lm)
+{
+	std::vector<Eigen::Vector3f> pts;
+	pts.reserve(lm.surfacePoints());
+	for (std::size_t i = 0; i < lm.surfaceCm.size(); i += 3)
+		pts.emplace_back(lm.surfaceCm[i] * 0.01f, lm.surfaceCm[i + 1] * 0.01f,
+		                 lm.surfaceCm[i + 2] * 0.01f);
+	return pts;
+}
+
 bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surface,
                                       const LocalMap& lm, Eigen::Isometry3d& T) const
 {
 	if (!icpRefine_ || surface.empty() || lm.surfacePoints() < 100)
 		return false;
 	const auto t0 = std::chrono::steady_clock::now();
-	std::vector<Eigen::Vector3f> target;
-	target.reserve(lm.surfacePoints());
-	for (std::size_t i = 0; i < lm.surfaceCm.size(); i += 3)
-		target.emplace_back(lm.surfaceCm[i] * 0.01f, lm.surfaceCm[i + 1] * 0.01f,
-		                    lm.surfaceCm[i + 2] * 0.01f);
-	const features::IcpTarget tgt(target, icp_);
+	const features::IcpTarget tgt(surfaceOf(lm), icp_);
 	const auto t1 = std::chrono::steady_clock::now();
 	const auto r = features::icpPointToPlane(surface, tgt, T, icp_);
 	const auto t2 = std::chrono::steady_clock::now();
