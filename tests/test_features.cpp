@@ -512,3 +512,23 @@ TEST(Icp, VoxelDownsampleKeepsOnePointAVoxel)
 		sawMean = sawMean || (p - Eigen::Vector3f(0.055f, 0.045f, 0.05f)).norm() < 1e-6f;
 	EXPECT_TRUE(sawMean);
 }
+
+TEST(Icp, VoxelDownsampleOfAScanKeepsItsRange)
+{
+	// Four points of a scan: two in one voxel near the sensor, one farther in range, one out.
+	std::vector<PointXYZI> scan(4);
+	scan[0].x = 1.02f;
+	scan[1].x = 1.08f;
+	scan[2].y = -9.95f;  // 9.95 m: inside a 10 m range
+	scan[3].z = 10.05f;  // 10.05 m: outside
+	const auto v = features::voxelDownsample(scan, 0.1, 10.0);
+	ASSERT_EQ(v.size(), 2u);
+	bool near = false, far = false;
+	for (const auto& p : v)
+	{
+		near = near || (p - Eigen::Vector3f(1.05f, 0, 0)).norm() < 1e-5f;
+		far = far || (p - Eigen::Vector3f(0, -9.95f, 0)).norm() < 1e-5f;
+	}
+	EXPECT_TRUE(near);
+	EXPECT_TRUE(far);
+}

@@ -87,6 +87,18 @@ std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>&
 	return out;
 }
 
+std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<PointXYZI>& pts, double voxel_m,
+                                             double range_m)
+{
+	std::vector<Eigen::Vector3f> near;
+	near.reserve(pts.size());
+	const float r2 = static_cast<float>(range_m * range_m);
+	for (const auto& p : pts)
+		if (p.x * p.x + p.y * p.y + p.z * p.z <= r2)
+			near.emplace_back(p.x, p.y, p.z);
+	return voxelDownsample(near, voxel_m);
+}
+
 struct IcpTarget::Impl
 {
 	std::vector<Eigen::Vector3f> pts, normals;

@@ -56,6 +56,9 @@ void GroundGrid::build(const std::vector<PointXYZI>& pts, const Plane& plane,
 		a.zmax = std::max(a.zmax, q.z);
 		a.n++;
 	}
+	// The spread the plane's slope explains across a cell is not a step.
+	const float maxSpread =
+	    static_cast<float>(p.maxSpread_m) + (std::abs(gx_) + std::abs(gy_)) * cell_;
 	index_.assign(acc.size(), -1);
 	centre_.assign(acc.size(), std::numeric_limits<float>::quiet_NaN());
 	for (std::size_t c = 0; c < acc.size(); c++)
@@ -66,9 +69,7 @@ void GroundGrid::build(const std::vector<PointXYZI>& pts, const Plane& plane,
 		Sample s;
 		s.mean = Eigen::Vector3f(static_cast<float>(a.sx / a.n), static_cast<float>(a.sy / a.n),
 		                         static_cast<float>(a.sz / a.n));
-		// The spread the plane's slope explains across a cell is not a step.
-		const float slope = (std::abs(gx_) + std::abs(gy_)) * cell_;
-		if (a.zmax - a.zmin > static_cast<float>(p.maxSpread_m) + slope)
+		if (a.zmax - a.zmin > maxSpread)
 			continue;
 		index_[c] = static_cast<int32_t>(samples_.size());
 		samples_.push_back(s);

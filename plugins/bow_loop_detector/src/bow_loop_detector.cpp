@@ -354,8 +354,11 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		else
 			vocab_->transform(descriptorsOf(q.desc), b);
 		// DBoW2 normalizes by the score against the previous keyframe: what a "good" match
-		// looks like here and now.
-		const double norm = prevBow_ ? bow::Vocabulary::score(b, *prevBow_) : 1.0;
+		// looks like here and now. The first keyframe (of a run, or after a loss) has none:
+		// it is normalized as a relocalization query is, by its own halves (a raw score
+		// against min_score refused a session's first keyframe even at 41 inliers).
+		const double norm =
+		    prevBow_ ? bow::Vocabulary::score(b, *prevBow_) : selfScore(descriptorsOf(q.desc));
 		const auto results = db_.size() > 0 ? db_.query(b, static_cast<std::size_t>(maxResults_))
 		                                    : std::vector<bow::Database::Result>{};
 		int examined = 0;

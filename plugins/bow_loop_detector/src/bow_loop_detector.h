@@ -16,6 +16,7 @@
 
 #include <Eigen/Dense>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 
@@ -60,9 +61,13 @@ class BowLoopDetector : public LoopDetector
 		double groundD = 0;
 		/** direct_index_levels_up > 0: the vocabulary node of each feature. */
 		std::vector<uint32_t> groups;
-		/** icp_refine: the query's scan reduced to one point a voxel (its frame), when known. */
-		std::vector<Eigen::Vector3f> surface;
+		/** icp_refine: makes the query's surface (its scan reduced to one point a voxel, its
+		 *  frame), when it has one; called only once a place is found. */
+		std::function<std::vector<Eigen::Vector3f>()> surface;
 	};
+	/** What a place scores against itself: the BOW score of a query's even features against
+	 *  its odd ones (the normalizer of a query with no previous keyframe). */
+	double selfScore(const std::vector<bow::Descriptor>& desc) const;
 	/** icp_refine: a scan's points within surface range, one a voxel. */
 	std::vector<Eigen::Vector3f> surfaceOf(const Scan& scan) const;
 	/** A local map's surface in its anchor frame, in metres. */

@@ -41,7 +41,7 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 	if (directLevels_ > 0)
 		q.groups = groupsOf(q.desc);
 	if (icpRefine_)
-		q.surface = surfaceOf(scan);
+		q.surface = [this, &scan] { return surfaceOf(scan); };
 	if (canonicalYaw_)
 	{
 		const auto words = canonicalWords(scan, raster);
@@ -76,8 +76,21 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 	if (directLevels_ > 0)
 		q.groups = groupsOf(q.desc);
 	if (icpRefine_ && onlyKeyframe < 0)
-		q.surface = surfaceOf(query);
+		q.surface = [&query] { return surfaceOf(query); };
 	return relocalizeQuery(q, static_cast<uint32_t>(query.id * 29 + 7 + onlyKeyframe), map, poses);
+}
+
+double BowLoopDetector::selfScore(const std::vector<bow::Descriptor>& desc) const
+{
+	// The query's two halves, even and odd features, scored against each other stand for
+	// what the same place scores.
+	std::vector<bow::Descriptor> even, odd;
+	for (std::size_t i = 0; i < desc.size(); i++)
+		(i % 2 ? odd : even).push_back(desc[i]);
+	bow::BowVector be, bo;
+	vocab_->transform(even, be);
+	vocab_->transform(odd, bo);
+	return bow::Vocabulary::score(be, bo);
 }
 
 RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
@@ -91,16 +104,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		b = *words;
 	else
 		vocab_->transform(desc, b);
-	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops):
-	// its two halves, even and odd features, scored against each other stand for what the
-	// same place scores.
-	std::vector<bow::Descriptor> even, odd;
-	for (std::size_t i = 0; i < desc.size(); i++)
-		(i % 2 ? odd : even).push_back(desc[i]);
-	bow::BowVector be, bo;
-	vocab_->transform(even, be);
-	vocab_->transform(odd, bo);
-	const double norm = bow::Vocabulary::score(be, bo);
+	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops).
+	const double norm = selfScore(desc);
 	const auto results = db_.query(b, static_cast<std::size_t>(maxCandidates_ + 1));
 	if (results.empty())
 	{
@@ -167,7 +172,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			res.inliers = std::max(res.inliers, fit.inliers.size());
 		}
 	}
-	if (bestMap && refineOnSurface(q.surface, *bestMap, bestT))
+	if (bestMap && q.surface && refineOnSurface(q.surface(), *bestMap, bestT))
 	{
 		res.keyframe = nearestKeyframe(*bestMap, bestT, poses);
 		// Height from the two ground planes again, as before the refinement: on the rendered

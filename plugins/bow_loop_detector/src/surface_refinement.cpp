@@ -11,13 +11,7 @@ using namespace rasterslam;
 
 std::vector<Eigen::Vector3f> BowLoopDetector::surfaceOf(const Scan& scan) const
 {
-	std::vector<Eigen::Vector3f> near;
-	near.reserve(scan.points.size());
-	const float r2 = static_cast<float>(icpRange_m_ * icpRange_m_);
-	for (const auto& p : scan.points)
-		if (p.x * p.x + p.y * p.y + p.z * p.z <= r2)
-			near.emplace_back(p.x, p.y, p.z);
-	return features::voxelDownsample(near, icp_.voxel_m);
+	return features::voxelDownsample(scan.points, icp_.voxel_m, icpRange_m_);
 }
 
 std::vector<Eigen::Vector3f> BowLoopDetector::surfaceOf(const LocalMap& lm)

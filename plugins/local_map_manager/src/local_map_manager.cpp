@@ -316,15 +316,7 @@ MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& s
 			if (idx >= 0)
 				cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
 	if (surfaceVoxel_m_ > 0)
-	{
-		std::vector<Eigen::Vector3f> near;
-		near.reserve(scan.points.size());
-		const float r2 = static_cast<float>(surfaceRange_m_ * surfaceRange_m_);
-		for (const auto& q : scan.points)
-			if (q.x * q.x + q.y * q.y + q.z * q.z <= r2)
-				near.emplace_back(q.x, q.y, q.z);
-		surfaces_[k->id] = features::voxelDownsample(near, surfaceVoxel_m_);
-	}
+		surfaces_[k->id] = features::voxelDownsample(scan.points, surfaceVoxel_m_, surfaceRange_m_);
 
 	MappingUpdate up;
 	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.

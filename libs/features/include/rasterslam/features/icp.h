@@ -9,6 +9,8 @@
 #include <memory>
 #include <vector>
 
+#include "rasterslam/core/types.h"
+
 namespace rasterslam::features
 {
 struct IcpParams
@@ -65,6 +67,10 @@ class IcpTarget
 /** One point per occupied voxel (the mean of its points). */
 std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>& pts,
                                              double voxel_m);
+/** A scan's points within `range_m` of its origin, one point per occupied voxel: the surface
+ *  a scan is registered with (loop refinement) and the one a local map keeps. */
+std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<PointXYZI>& pts, double voxel_m,
+                                             double range_m);
 
 /** Aligns `source` on `target` from `initial` (source pose in the target's frame). */
 IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& source,
