@@ -400,7 +400,10 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			const OdometryResult odo = track(s, *scan, raster, rec);
 			const bool atKeyframe = !s.haveKf || odo.keyframe;
 			std::optional<LoopConstraint> relocEdge;
-			if (loopDetector_ && raster && !s.anchored && (atKeyframe || anchorEveryScan_))
+			// Once enough hits agree the search is over: the anchoring only waits for a
+			// keyframe (a graph node), and a later hit must not move or recount it.
+			if (loopDetector_ && raster && !s.anchored && !s.anchorReady &&
+			    (atKeyframe || anchorEveryScan_))
 				seekAnchor(s, *scan, *raster, rec);
 			if (s.anchorReady && !s.anchored && atKeyframe)
 				relocEdge = anchor(s);
