@@ -510,13 +510,14 @@ TEST(OrbOdometry, BridgedFramesKeepTheGroundOnFlatGround)
 	ASSERT_TRUE(t.rasterizer && t.odometry);
 	mrpt::poses::CPose3D pose, lastKf;
 	double worstTilt = 0;
-	std::size_t lost = 0, keyframes = 0;
+	std::size_t lost = 0, keyframes = 0, bridged = 0;
 	for (std::size_t k = 0; k < sc.scans; k++)
 	{
 		const Scan s = simu.scan(k);
 		const auto r = t.step(s);
 		lost += r.status == TrackingStatus::Lost;
 		keyframes += r.keyframe;
+		bridged += r.message.rfind("tracked through the previous frame", 0) == 0;
 		ASSERT_TRUE(r.T_kf_curr.has_value());
 		pose = lastKf + *r.T_kf_curr;
 		if (!r.keyframe)
@@ -528,6 +529,7 @@ TEST(OrbOdometry, BridgedFramesKeepTheGroundOnFlatGround)
 	}
 	EXPECT_EQ(lost, 0u);
 	EXPECT_GT(keyframes, 25u);  // the chain of keyframes is long enough to drift
+	EXPECT_GE(bridged, 5u);     // the drive exercises the bridge
 	EXPECT_LT(worstTilt, 0.4) << "the keyframes tilt on flat ground";
 }
 

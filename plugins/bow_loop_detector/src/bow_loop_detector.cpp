@@ -148,6 +148,7 @@ void BowLoopDetector::trainOnline()
 	v->train(images, tp);
 	vocab_ = v;
 	trainedOn_ = trainingImages_.size();
+	prevBow_.reset();  // in the old words: no measure of a score in the new ones
 	// New words: every entry is indexed again.
 	db_ = bow::Database();
 	entryMap_.clear();
@@ -354,13 +355,17 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		else
 			vocab_->transform(descriptorsOf(q.desc), b);
 		// DBoW2 normalizes by the score against the previous keyframe: what a "good" match
-		// looks like here and now. The first keyframe (of a run, or after a loss) has none:
-		// it is normalized as a relocalization query is, by its own halves (a raw score
-		// against min_score refused a session's first keyframe even at 41 inliers).
-		const double norm =
-		    prevBow_ ? bow::Vocabulary::score(b, *prevBow_) : selfScore(descriptorsOf(q.desc));
+		// looks like here and now. The first keyframe (of a run, after a loss, or after the
+		// online vocabulary was trained again) has none: it is normalized as a relocalization
+		// query is, by its own halves (a raw score against min_score refused a session's
+		// first keyframe even at 41 inliers).
+		if (kf.afterLoss)
+			prevBow_.reset();  // the previous keyframe is not known to be near this one
 		const auto results = db_.size() > 0 ? db_.query(b, static_cast<std::size_t>(maxResults_))
 		                                    : std::vector<bow::Database::Result>{};
+		const double norm = results.empty() ? 0
+		                    : prevBow_      ? bow::Vocabulary::score(b, *prevBow_)
+		                                    : selfScore(descriptorsOf(q.desc));
 		int examined = 0;
 		for (const auto& r : results)
 		{

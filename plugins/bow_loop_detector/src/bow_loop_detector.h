@@ -66,7 +66,7 @@ class BowLoopDetector : public LoopDetector
 		std::function<std::vector<Eigen::Vector3f>()> surface;
 	};
 	/** What a place scores against itself: the BOW score of a query's even features against
-	 *  its odd ones (the normalizer of a query with no previous keyframe). */
+	 *  its odd ones (the normalizer of a query with no previous keyframe); 0 under 40 features. */
 	double selfScore(const std::vector<bow::Descriptor>& desc) const;
 	/** icp_refine: a scan's points within surface range, one a voxel. */
 	std::vector<Eigen::Vector3f> surfaceOf(const Scan& scan) const;

@@ -48,7 +48,7 @@ class OrbOdometry : public Odometry
 	                                             const Eigen::Isometry3d* prior) const;
 	/** The same, then (ground_model: grid) the same patches of ground matched. */
 	Eigen::Isometry3d alignGround(const Eigen::Isometry3d& T_ref_cur, const Frame& ref,
-	                              const Frame& cur, const Eigen::Isometry3d* prior = nullptr) const;
+	                              const Frame& cur) const;
 	void extract(const Scan& scan, const RasterFrame& raster, Frame& f);
 	features::RigidResult track(const Frame& ref, const Frame& cur, const Eigen::Isometry3d& prior,
 	                            bool gated, std::size_t seed);
@@ -321,12 +321,12 @@ std::optional<Eigen::Isometry3d> OrbOdometry::alignPlanes(const Eigen::Isometry3
 }
 
 Eigen::Isometry3d OrbOdometry::alignGround(const Eigen::Isometry3d& T, const Frame& ref,
-                                           const Frame& cur, const Eigen::Isometry3d* prior) const
+                                           const Frame& cur) const
 {
 	// x, y and yaw from the features, z, roll and pitch from the two ground planes.
 	if (!ref.groundValid || !cur.groundValid)
 		return T;
-	const auto aligned = alignPlanes(T, ref, cur, prior);
+	const auto aligned = alignPlanes(T, ref, cur, nullptr);
 	const Eigen::Isometry3d start = aligned ? *aligned : T;  // none: a slope change
 	if (!groundGrid_)
 		return start;
@@ -481,6 +481,10 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		auto viaPrev = track(*prev_, *cur, velocity_, true, scan.index + 7919);
 		if (viaPrev.ok && viaPrev.inliers.size() > (est.ok ? est.inliers.size() : 0))
 		{
+			r.message = "tracked through the previous frame (" +
+			            std::to_string(est.ok ? est.inliers.size() : 0) +
+			            " inliers against the keyframe, " + std::to_string(viaPrev.inliers.size()) +
+			            " against the previous frame)";
 			// Roll and pitch from the previous frame's ground plane, itself aligned on the
 			// keyframe's: the chain of planes stays unbroken. Left to the features, every
 			// bridged frame (the next keyframe) carried their tilt into the trajectory: a

@@ -85,7 +85,9 @@ struct OdometryResult
 	std::size_t inliers = 0;
 	/** Information matrix of T_prev_curr, order (x y z yaw pitch roll) as MRPT's 3D graphs. */
 	mrpt::math::CMatrixDouble66 information = mrpt::math::CMatrixDouble66::Identity();
-	std::string message;  //!< why, when not Ok
+	/** Why, when not Ok; how, when Ok other than by the keyframe's features (bridged through
+	 *  the previous frame, recovered by ICP). */
+	std::string message;
 	/** When `keyframe` is set, what the odometry saw there (features and 3D points); the
 	 *  engine fills in the id and pose. Null for odometries without features (GICP). */
 	Keyframe::Ptr keyframeData;
