@@ -158,6 +158,8 @@ if [ "$mode" = full ]; then
   section "Lifelong: ten sessions over one town that changes" env BUILD="$BUILD" WORK="$work/sessions" bash "$here/scripts/benchmark-sessions.sh"
   section "Place recognition among distractors" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
     --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 22 --queries 10
+  section "Place recognition among 1,000 local maps" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
+    --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5
   section "Map store: save and load of 1,000 local maps" "$bin/rasterslam-bench-map-store"
 fi
 

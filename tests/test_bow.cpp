@@ -216,6 +216,27 @@ TEST(Bow, Score)
 		}
 }
 
+TEST(Bow, SelfScoreOfAPlaceFromItsHalves)
+{
+	const auto f = makeFixture();
+	// Every descriptor twice in a row: the even and the odd halves are the same features.
+	std::vector<Descriptor> twice;
+	for (const auto& d : f.images[0])
+		twice.insert(twice.end(), {d, d});
+	ASSERT_GE(twice.size(), 40u);
+	EXPECT_NEAR(f.voc.selfScore(twice), 1.0, 1e-12);
+	// Halves of two different places score lower.
+	std::vector<Descriptor> mixed;
+	for (std::size_t i = 0; i < f.images[0].size() && i < f.images[6].size(); i++)
+		mixed.insert(mixed.end(), {f.images[0][i], f.images[6][i]});
+	ASSERT_GE(mixed.size(), 40u);
+	EXPECT_LT(f.voc.selfScore(mixed), 0.9);
+	// Too few features to judge: no normalizer.
+	const std::vector<Descriptor> few(twice.begin(), twice.begin() + 38);
+	EXPECT_EQ(f.voc.selfScore(few), 0.0);
+	EXPECT_NEAR(f.voc.selfScore(few, 2), 1.0, 1e-12);
+}
+
 TEST(Bow, TransformIsL1Normalized)
 {
 	const auto f = makeFixture();

@@ -348,3 +348,17 @@ std::vector<Descriptor> rasterslam::bow::toDescriptors(const uint8_t* data, std:
 		std::memcpy(out.data(), data, rows * sizeof(Descriptor));
 	return out;
 }
+
+double rasterslam::bow::Vocabulary::selfScore(const std::vector<Descriptor>& desc,
+                                              std::size_t minDescriptors) const
+{
+	if (desc.size() < minDescriptors)
+		return 0;
+	std::vector<Descriptor> even, odd;
+	for (std::size_t i = 0; i < desc.size(); i++)
+		(i % 2 ? odd : even).push_back(desc[i]);
+	BowVector be, bo;
+	transform(even, be);
+	transform(odd, bo);
+	return score(be, bo);
+}

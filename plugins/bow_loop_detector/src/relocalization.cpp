@@ -84,18 +84,9 @@ double BowLoopDetector::selfScore(const std::vector<bow::Descriptor>& desc) cons
 {
 	// The query's two halves, even and odd features, scored against each other stand for
 	// what the same place scores. Halves of a few features score by chance (two words shared
-	// or none): such a query gets no normalizer, its scores read 0 and min_score refuses it
-	// (40 features: a little over twice the default relocalization_min_inliers, 18).
-	constexpr std::size_t kMinFeatures = 40;
-	if (desc.size() < kMinFeatures)
-		return 0;
-	std::vector<bow::Descriptor> even, odd;
-	for (std::size_t i = 0; i < desc.size(); i++)
-		(i % 2 ? odd : even).push_back(desc[i]);
-	bow::BowVector be, bo;
-	vocab_->transform(even, be);
-	vocab_->transform(odd, bo);
-	return bow::Vocabulary::score(be, bo);
+	// or none): under 40 features a query gets no normalizer, its scores read 0 and min_score
+	// refuses it (40: a little over twice the default relocalization_min_inliers, 18).
+	return vocab_->selfScore(desc, 40);
 }
 
 RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t seed, const Map& map,

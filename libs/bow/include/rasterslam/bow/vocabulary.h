@@ -58,6 +58,10 @@ class Vocabulary : public mrpt::serialization::CSerializable
 	/** DBoW2's L1 score of two L1-normalized vectors: 1 - 0.5 * |a - b|_1, in [0, 1]
 	 *  (1 for identical vectors, 0 for vectors with no word in common). */
 	static double score(const BowVector& a, const BowVector& b);
+	/** What a place scores against itself: the score of the even descriptors' words against
+	 *  the odd ones' (a query's normalizer when no neighbouring view is at hand). 0 under
+	 *  `minDescriptors` (halves of a few features score by chance). */
+	double selfScore(const std::vector<Descriptor>& desc, std::size_t minDescriptors = 40) const;
 
 	std::size_t words() const { return wordNode_.size(); }
 	bool empty() const { return nodes_.empty(); }
