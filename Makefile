@@ -2,7 +2,7 @@
 #   make demo   installs what is missing, builds, simulates a town drive and runs SLAM on it
 #   make test   installs what is missing, builds and runs the whole test suite
 #   make bench-quick / make bench   the benchmark report, bench/results/REPORT.md with plots
-#               (under 10 minutes / about an hour)
+#               (under 10 minutes / about 75 minutes)
 #   make bench-repro   makes the quick report twice: every accuracy figure must repeat
 BUILD ?= build
 JOBS ?= $(shell nproc)

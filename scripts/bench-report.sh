@@ -8,7 +8,7 @@
 #
 # usage: scripts/bench-report.sh [--quick|--smoke]      (make bench / make bench-quick)
 #   full:    benchmark.sh, benchmark-loops.sh, benchmark-mapping.sh, benchmark-sessions.sh,
-#            rasterslam-bench-places and rasterslam-bench-map-store (about an hour)
+#            rasterslam-bench-places and rasterslam-bench-map-store (about 75 minutes)
 #   --quick: benchmark.sh (150-scan town drives) and benchmark-loops.sh (under 10 minutes)
 #   --smoke: benchmark.sh on 40-scan drives without KITTI or KISS-ICP: checks the report's
 #            making, not the figures (the test suite runs it)
@@ -160,6 +160,8 @@ if [ "$mode" = full ]; then
     --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 22 --queries 10
   section "Place recognition among 1,000 local maps" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
     --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5
+  section "Place recognition among 1,000 local maps, local-map queries" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
+    --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5 --query-local-maps
   section "Map store: save and load of 1,000 local maps" "$bin/rasterslam-bench-map-store"
 fi
 

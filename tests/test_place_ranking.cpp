@@ -1,6 +1,6 @@
 // The BOW database ranks the true place on top among distractors: rasterslam-bench-places
 // over five simulated towns (235 places that look alike: the same generator, other seeds),
-// and over the local-map images of three.
+// and over the local-map images of three, queried with scans and with local-map images.
 #include "test_json.h"
 #include "test_support.h"
 
@@ -69,4 +69,17 @@ TEST(PlaceRanking, LocalMapImagesAmongDistractors)
 	const double r1 = j["recall_at_1"].get<double>();
 	EXPECT_NEAR(c.back()["recall"].get<double>(), r1, 1e-9);
 	EXPECT_NEAR(c.back()["precision"].get<double>(), r1 * 30 / 40, 1e-9);
+}
+
+TEST(PlaceRanking, LocalMapQueriesFindLocalMaps)
+{
+	// The same database queried with local-map images of the query's own drive (5 keyframes
+	// around the query pose, aside and turned or driven the other way): image against image
+	// of one kind. Measured: recall@1 0.83, recall@5 0.93 (scan queries: 0.37 and 0.80).
+	const auto j = bench("--local-maps --query-local-maps", 3);
+	ASSERT_EQ(j["query_kind"].get<std::string>(), "local_map");
+	ASSERT_EQ(j["places"].get<int>(), 72);
+	ASSERT_EQ(j["queries"].get<int>(), 30);
+	EXPECT_GE(j["recall_at_5"].get<double>(), 0.85);
+	EXPECT_GE(j["recall_at_1"].get<double>(), 0.7);
 }

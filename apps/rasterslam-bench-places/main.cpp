@@ -45,7 +45,7 @@ struct Args
 	double every_m = 8, offset_m = 3, yaw_deg = 20, truth_m = 8;
 	int queriesPerTown = 6;
 	bool json = false;
-	bool localMaps = false;
+	bool localMaps = false, queryLocalMaps = false;
 	int keyframes = 5;
 	double keyframeEvery_m = 4;
 	int otherTowns = 0;
@@ -103,7 +103,7 @@ bow::BowVector wordsOf(const Scan& scan, const bow::Vocabulary& vocab, features:
 bow::BowVector localMapWords(const std::vector<Scan>& scans,
                              const std::vector<mrpt::poses::CPose3D>& poses,
                              const bow::Vocabulary& vocab, features::OrbExtractor& orb,
-                             uint32_t seed)
+                             uint32_t seed, double* selfScore = nullptr)
 {
 	std::vector<PointXYZI> pts;
 	for (std::size_t i = 0; i < scans.size(); i++)
@@ -127,8 +127,11 @@ bow::BowVector localMapWords(const std::vector<Scan>& scans,
 	mp.canonicalYaw = gCanonical;
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mp, img);
+	const auto desc = descriptorsOf(img.image.asCvMatRef(), orb);
 	bow::BowVector b;
-	vocab.transform(descriptorsOf(img.image.asCvMatRef(), orb), b);
+	vocab.transform(desc, b);
+	if (selfScore)
+		*selfScore = vocab.selfScore(desc);
 	return b;
 }
 
@@ -212,11 +215,36 @@ int run(const Args& a)
 			                      every / 2;
 			const double side = (q % 2 ? -1 : 1) * a.offset_m;
 			const double yaw = (q % 2 ? 180.0 : a.yaw_deg) * M_PI / 180;
-			const auto pose = s.sensorPose(k) + mrpt::poses::CPose3D(0, side, 0, yaw, 0, 0);
-			const Scan scan = s.scanFrom(pose, 1000000 + k, s.stamp(k));
-			++scansSimulated;
+			const mrpt::poses::CPose3D aside(0, side, 0, yaw, 0, 0);
+			const auto pose = s.sensorPose(k) + aside;
 			double self = 0;
-			auto words = wordsOf(scan, *vocab, orb, static_cast<uint32_t>(k + 7), &self);
+			bow::BowVector words;
+			if (a.queryLocalMaps)
+			{
+				// A local map of the query's drive around k, its keyframes in the order of
+				// that drive (the other way: from the far end).
+				std::vector<Scan> scans;
+				std::vector<mrpt::poses::CPose3D> poses;
+				for (int i = 0; i < a.keyframes; i++)
+				{
+					const long step =
+					    (q % 2 ? -1L : 1L) * (i - a.keyframes / 2) * static_cast<long>(kfEvery);
+					const auto kk = static_cast<std::size_t>(
+					    (static_cast<long>(k) + step + static_cast<long>(lap)) %
+					    static_cast<long>(lap));
+					poses.push_back(s.sensorPose(kk) + aside);
+					scans.push_back(s.scanFrom(poses.back(), 1000000 + kk, s.stamp(kk)));
+				}
+				scansSimulated += scans.size();
+				words =
+				    localMapWords(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 7), &self);
+			}
+			else
+			{
+				const Scan scan = s.scanFrom(pose, 1000000 + k, s.stamp(k));
+				++scansSimulated;
+				words = wordsOf(scan, *vocab, orb, static_cast<uint32_t>(k + 7), &self);
+			}
 			queries.push_back({other ? -1 : t, Eigen::Vector3d(pose.x(), pose.y(), pose.z()),
 			                   std::move(words), self, q % 2 == 1});
 		}
@@ -319,6 +347,7 @@ int run(const Args& a)
 		j["towns"] = a.towns;
 		j["places"] = places.size();
 		j["place_kind"] = a.localMaps ? "local_map" : "scan";
+		j["query_kind"] = a.queryLocalMaps ? "local_map" : "scan";
 		j["scans_simulated"] = scansSimulated;
 		j["queries"] = withTruth;
 		j["other_town_queries"] = others;
@@ -403,6 +432,9 @@ int main(int argc, char** argv)
 	app.add_flag("--local-maps", args.localMaps,
 	             "a place is a local-map image (--keyframes scans --keyframe-every m apart, the "
 	             "map manager's way) instead of one scan's image");
+	app.add_flag("--query-local-maps", args.queryLocalMaps,
+	             "the queries are local-map images too (of their own drive, centred on the query "
+	             "pose) instead of one scan's image");
 	app.add_option("--keyframes", args.keyframes, "--local-maps: keyframes a local map (5)")
 	    ->check(CLI::Range(1, 32).description(""))
 	    ->type_name("N");
