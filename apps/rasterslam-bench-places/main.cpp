@@ -229,9 +229,9 @@ int run(const Args& a)
 				{
 					const long step =
 					    (q % 2 ? -1L : 1L) * (i - a.keyframes / 2) * static_cast<long>(kfEvery);
-					const auto kk = static_cast<std::size_t>(
-					    (static_cast<long>(k) + step + static_cast<long>(lap)) %
-					    static_cast<long>(lap));
+					const long n = static_cast<long>(lap);
+					const auto kk =
+					    static_cast<std::size_t>(((static_cast<long>(k) + step) % n + n) % n);
 					poses.push_back(s.sensorPose(kk) + aside);
 					scans.push_back(s.scanFrom(poses.back(), 1000000 + kk, s.stamp(kk)));
 				}
@@ -359,6 +359,7 @@ int run(const Args& a)
 		                                            : 0.0;
 		j["recall_at_5_other_way"] =
 		    opp ? static_cast<double>(oppAt5) / static_cast<double>(opp) : 0.0;
+		j["answered_queries"] = best.size();
 		j["recall_at_precision_1"] = recallAtPrecision1;
 		auto& c = j["pr_curve"] = nlohmann::ordered_json::array();
 		for (const auto& p : curve)
@@ -435,11 +436,12 @@ int main(int argc, char** argv)
 	app.add_flag("--query-local-maps", args.queryLocalMaps,
 	             "the queries are local-map images too (of their own drive, centred on the query "
 	             "pose) instead of one scan's image");
-	app.add_option("--keyframes", args.keyframes, "--local-maps: keyframes a local map (5)")
+	app.add_option("--keyframes", args.keyframes,
+	               "keyframes a local map, of places and local-map queries (5)")
 	    ->check(CLI::Range(1, 32).description(""))
 	    ->type_name("N");
 	app.add_option("--keyframe-every", args.keyframeEvery_m,
-	               "--local-maps: metres between keyframes (4)")
+	               "metres between the keyframes of a local map (4)")
 	    ->check(CLI::Range(0.5, 100.0).description(""))
 	    ->type_name("M");
 	app.add_option("--other-towns", args.otherTowns,

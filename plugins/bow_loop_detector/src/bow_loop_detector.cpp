@@ -359,8 +359,9 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		// online vocabulary was trained again) has none: it is normalized as a relocalization
 		// query is, by its own halves (a raw score against min_score refused a session's
 		// first keyframe even at 41 inliers).
-		if (kf.afterLoss)
-			prevBow_.reset();  // the previous keyframe is not known to be near this one
+		if (kf.afterLoss || kf.locatedAt)
+			prevBow_.reset();  // after a loss (relocalized or not) the previous keyframe is
+			                   // not known to be near this one
 		const auto results = db_.size() > 0 ? db_.query(b, static_cast<std::size_t>(maxResults_))
 		                                    : std::vector<bow::Database::Result>{};
 		const double norm = results.empty() ? 0

@@ -560,8 +560,10 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		// the de-skewed town-sweep drive the ATE went 0.22 -> 0.39 m (tests/test_orb_odometry.cpp,
 		// Deskew; the one frame it corrects there is right, the rest is another realisation of
 		// the open path's drift).
+		// The motion model even when constant_velocity does not start the search from it.
+		const Eigen::Isometry3d motion = T_kf_prev_ * velocity_;
 		T_kf_curr = alignGround_ && !bridged
-		                ? alignGround(est.T, *kf_, *cur, groundMotionCheck_ ? &prior : nullptr)
+		                ? alignGround(est.T, *kf_, *cur, groundMotionCheck_ ? &motion : nullptr)
 		                : est.T;
 		if (refine_ != Refine::None && !recovered && !bridged && kfTarget_)
 		{
