@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
@@ -117,6 +118,80 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 		EXPECT_FALSE(a.empty()) << file;
 		EXPECT_TRUE(a == b) << file << " differs between two runs";
 	}
+}
+
+TEST(LoopClosure, ImageQueriesOfTheLocalMapBeingBuilt)
+{
+	// map_manager.place_query_keyframes: the loop query is the image of the last keyframes
+	// (the local map being built), matched against the database's local-map images: image
+	// against image. On the revisit drive it finds the same loops, all right, with other
+	// scores than the keyframe's own words give.
+	const auto dir = test::tempDir("loop");
+	std::ifstream in(test::sourcePath("share/rasterslam/config/slam.yaml"));
+	std::string y((std::istreambuf_iterator<char>(in)), {});
+	y = std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
+	                       "vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
+	const auto runWith = [&](const std::string& name, int window)
+	{
+		const auto cfg = dir / (name + ".yaml");
+		std::ofstream(cfg) << std::regex_replace(
+		    y, std::regex("\n    keyframes_per_map:"),
+		    "\n    place_query_keyframes: " + std::to_string(window) + "\n    keyframes_per_map:");
+		const auto r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + vlp16Rawlog() +
+		                                " --config " + cfg.string() + " --quiet --out " +
+		                                (dir / name).string());
+		return r;
+	};
+	// (query stamp, candidate stamp) -> normalized score, of the verified candidates.
+	const auto scores = [&](const std::string& name)
+	{
+		std::map<std::pair<double, double>, double> out;
+		std::ifstream f(dir / name / "loops.txt");
+		std::string line;
+		while (std::getline(f, line))
+		{
+			if (line.empty() || line[0] == '#')
+				continue;
+			std::istringstream ss(line);
+			double qs = 0, cs = 0, score = 0;
+			int inliers = 0, verified = 0;
+			ss >> qs >> cs >> score >> inliers >> verified;
+			if (verified)
+				out[{qs, cs}] = score;
+		}
+		return out;
+	};
+	for (const auto& [name, window] : {std::pair<std::string, int>{"keyframe", 0}, {"image", 5}})
+	{
+		const auto r = runWith(name, window);
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+	}
+	const auto e = test::runCommand(test::bin("rasterslam-eval") + " loops --loops " +
+	                                (dir / "image" / "loops.txt").string() + " --gt " +
+	                                (dir / "image" / "groundtruth.tum").string() + " --json");
+	ASSERT_EQ(e.exitCode, 0) << e.output;
+	const auto j = nlohmann::json::parse(e.output, nullptr, false);
+	ASSERT_TRUE(j.is_object() && j.contains("detector")) << e.output;
+	const std::string det = j["detector"].dump();
+	// As the keyframe queries (README: precision 1, 4 of 7 revisiting keyframes).
+	EXPECT_EQ(jsonNumber(det, "fp"), 0) << det;
+	EXPECT_GE(jsonNumber(det, "tp"), 4) << det;
+	// The words are the image's: the same verified pairs score otherwise.
+	const auto a = scores("keyframe"), b = scores("image");
+	int common = 0, differ = 0;
+	for (const auto& [key, score] : b)
+		if (const auto it = a.find(key); it != a.end())
+		{
+			++common;
+			differ += std::abs(it->second - score) > 1e-3;
+		}
+	EXPECT_GE(common, 4);
+	EXPECT_EQ(differ, common);
+
+	// A window below 0 is refused, naming the parameter.
+	const auto bad = runWith("bad", -1);
+	EXPECT_EQ(bad.exitCode, 1);
+	EXPECT_NE(bad.output.find("place_query_keyframes"), std::string::npos) << bad.output;
 }
 
 TEST(LoopClosure, ConfigurationErrors)

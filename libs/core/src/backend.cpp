@@ -300,10 +300,13 @@ void Backend::process(KeyframeJob& job)
 {
 	StageTimes t;
 	std::lock_guard<std::mutex> mapLock(mapMutex_);
+	std::vector<uint8_t> placeQuery;
 	if (mapManager_)
 	{
 		const auto t0 = Clock::now();
-		applyMapping(mapManager_->addKeyframe(job.kf, *job.scan, job.raster.get(), poses_));
+		auto up = mapManager_->addKeyframe(job.kf, *job.scan, job.raster.get(), poses_);
+		applyMapping(up);
+		placeQuery = std::move(up.placeQuery);
 		// Local BA may have moved this keyframe: the loop query starts from where it is now.
 		job.kf.pose = poses_.at(job.kf.node);
 		t.mapping = msSince(t0);
@@ -314,10 +317,12 @@ void Backend::process(KeyframeJob& job)
 		std::vector<std::pair<uint64_t, uint64_t>> accepted;
 		job.kf.scan = job.scan.get();
 		job.kf.raster = job.raster.get();
+		job.kf.placeQuery = &placeQuery;
 		job.kf.inMapFrame = anchored_;
 		auto loops = loopDetector_->detect(job.kf, mapManager_->map(), poses_);
 		job.kf.scan = nullptr;
 		job.kf.raster = nullptr;
+		job.kf.placeQuery = nullptr;
 		if (anchored_ && !caughtUp_)
 		{
 			// Anchored since the last keyframe: the keyframes made before are in the map's

@@ -348,9 +348,18 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		searchByDistance(q, kf, map, poses, best, bestDecision);
 	else if (vocab_ && n > 0)
 	{
-		// Query the database with this keyframe's words.
+		// Query the database with the words of the image of the local map being built, when
+		// the map manager makes one (place_query_keyframes): image against image, as the
+		// database holds; else with this keyframe's words.
 		bow::BowVector b;
-		if (canonicalYaw_ && kf.scan && kf.raster)
+		const bool imageQuery = kf.placeQuery && !kf.placeQuery->empty();
+		std::vector<bow::Descriptor> imageDesc;
+		if (imageQuery)
+		{
+			imageDesc = bow::toDescriptors(kf.placeQuery->data(), kf.placeQuery->size() / 32);
+			vocab_->transform(imageDesc, b);
+		}
+		else if (canonicalYaw_ && kf.scan && kf.raster)
 			b = canonicalWords(*kf.scan, *kf.raster);
 		else
 			vocab_->transform(descriptorsOf(q.desc), b);
@@ -364,7 +373,10 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			                   // not known to be near this one
 		const auto results = db_.size() > 0 ? db_.query(b, static_cast<std::size_t>(maxResults_))
 		                                    : std::vector<bow::Database::Result>{};
+		// An image query shares most of its keyframes with the previous one, whose score says
+		// nothing of a place: it is normalized by its own halves.
 		const double norm = results.empty() ? 0
+		                    : imageQuery    ? selfScore(imageDesc)
 		                    : prevBow_      ? bow::Vocabulary::score(b, *prevBow_)
 		                                    : selfScore(descriptorsOf(q.desc));
 		int examined = 0;
@@ -392,7 +404,10 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			d.reason = !fit.ok ? "inliers" : (d.score < minScore_ ? "score" : "ok");
 			consider(d, fit, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision);
 		}
-		prevBow_ = b;
+		if (imageQuery)
+			prevBow_.reset();  // the words of an image, not of a keyframe
+		else
+			prevBow_ = b;
 	}
 	// An anchored session also looks for the earlier sessions where it is, unless the BOW
 	// search found one of them.

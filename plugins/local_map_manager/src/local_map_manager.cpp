@@ -15,6 +15,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <deque>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
@@ -61,9 +62,14 @@ class LocalMapManager : public MapManager
 	std::vector<uint8_t> wordsOfImage(const cv::Mat& image);
 	/** The same from a local map's stored PNG. */
 	std::vector<uint8_t> wordsOf(const LocalMap& lm);
+	/** place_query_keyframes > 0: the descriptors of the image of the last keyframes' clouds
+	 *  (the local map being built around keyframe `kf`) in kf's frame, rasterized as a
+	 *  local-map image is: the loop detector's query, image against image. */
+	std::vector<uint8_t> placeQuery(uint64_t kf, const PoseView& poses);
 
 	// parameters
 	int keyframesPerMap_ = 5;
+	int placeQueryKeyframes_ = 0;  //!< keyframes in the loop query's image (0: no image)
 	double maxExtent_m_ = 40;
 	bool overlap_ = true;
 	bool localBa_ = false;
@@ -90,6 +96,8 @@ class LocalMapManager : public MapManager
 	std::optional<uint64_t>
 	    lastLocalMap_;  //!< the previous local map, when the open one continues it
 	std::map<uint64_t, std::vector<PointXYZI>> clouds_;  //!< non-ground points of open keyframes
+	/** place_query_keyframes > 0: the latest keyframes' non-ground points, oldest first. */
+	std::deque<std::pair<uint64_t, std::vector<PointXYZI>>> queryWindow_;
 	/** surface_voxel_m > 0: each open keyframe's scan reduced to one point a voxel. */
 	std::map<uint64_t, std::vector<Eigen::Vector3f>> surfaces_;
 	std::vector<uint64_t>
@@ -117,6 +125,7 @@ RASTERSLAM_REGISTER_CLASSES(register_rasterslam_plugin_local_map_manager)
 void LocalMapManager::initializeImpl(ParamReader& p)
 {
 	keyframesPerMap_ = p.getInt("keyframes_per_map", keyframesPerMap_);
+	placeQueryKeyframes_ = p.getInt("place_query_keyframes", placeQueryKeyframes_);
 	maxExtent_m_ = p.getDouble("max_extent_m", maxExtent_m_);
 	overlap_ = p.getBool("overlap", overlap_);
 	localBa_ = p.getBool("local_ba", localBa_);
@@ -152,6 +161,8 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	p.require(maxOnlineMaps_ >= 0, maxOnlineMaps_, "max_online_maps", "must be >= 0 (0: no bound)");
 	p.requireRange(keyframesPerMap_, 1, static_cast<double>(LocalMap::kMaxKeyframes),
 	               "keyframes_per_map");
+	p.requireRange(placeQueryKeyframes_, 0, static_cast<double>(LocalMap::kMaxKeyframes),
+	               "place_query_keyframes");
 	p.requirePositive(maxExtent_m_, "max_extent_m");
 	p.requireAtLeast(ba_.maxIterations, 1, "ba_max_iterations");
 	p.requirePositive(ba_.sigmaXY_m, "ba_sigma_xy_m");
@@ -170,6 +181,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	session_ = 0;
 	open_.clear();
 	clouds_.clear();
+	queryWindow_.clear();
 	surfaces_.clear();
 	pendingLoops_.clear();
 	pendingRelocs_.clear();
@@ -317,8 +329,19 @@ MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& s
 				cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
 	if (surfaceVoxel_m_ > 0)
 		surfaces_[k->id] = features::voxelDownsample(scan.points, surfaceVoxel_m_, surfaceRange_m_);
+	if (placeQueryKeyframes_ > 0)
+	{
+		// The query window, like a local map, never spans a gap in tracking.
+		if (kf.afterLoss)
+			queryWindow_.clear();
+		queryWindow_.emplace_back(k->id, cloud);
+		while (queryWindow_.size() > static_cast<std::size_t>(placeQueryKeyframes_))
+			queryWindow_.pop_front();
+	}
 
 	MappingUpdate up;
+	if (placeQueryKeyframes_ > 0)
+		up.placeQuery = placeQuery(k->id, poses);
 	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.
 	if (kf.afterLoss && !open_.empty())
 		finishOpen(poses, up, false);
@@ -579,6 +602,7 @@ void LocalMapManager::loadMap(const std::string& dir)
 	map_.sessions = session_ + 1;
 	open_.clear();
 	clouds_.clear();
+	queryWindow_.clear();
 	pendingLoops_.clear();
 	pendingRelocs_.clear();
 	lastLocalMap_.reset();
@@ -669,6 +693,29 @@ std::vector<uint8_t> LocalMapManager::wordsOfImage(const cv::Mat& image)
 	orb_->extract(image, kps, desc);
 	return desc.rows > 0 ? std::vector<uint8_t>(desc.datastart, desc.dataend)
 	                     : std::vector<uint8_t>{};
+}
+
+std::vector<uint8_t> LocalMapManager::placeQuery(uint64_t kf, const PoseView& poses)
+{
+	const auto T_world_kf = poses.at(kf);
+	std::vector<PointXYZI> pts;
+	for (const auto& [id, cloud] : queryWindow_)
+	{
+		const auto pose = poses(id);
+		if (!pose)
+			continue;
+		const Eigen::Isometry3f T = toIsometry(*pose - T_world_kf).cast<float>();
+		for (const auto& q : cloud)
+		{
+			const Eigen::Vector3f w = T * Eigen::Vector3f(q.x, q.y, q.z);
+			pts.push_back({w.x(), w.y(), w.z(), q.intensity});
+		}
+	}
+	if (pts.empty())
+		return {};
+	RasterFrame img;
+	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
+	return wordsOfImage(img.image.asCvMatRef());
 }
 
 std::vector<uint8_t> LocalMapManager::wordsOf(const LocalMap& lm)

@@ -126,6 +126,9 @@ struct KeyframeInfo
 	 *  keyframe to the mapping and the loop detector (null otherwise; not to be kept). */
 	const Scan* scan = nullptr;
 	const RasterFrame* raster = nullptr;
+	/** The map manager's MappingUpdate::placeQuery for this keyframe, while the engine hands
+	 *  it to the loop detector (null or empty otherwise; not to be kept). */
+	const std::vector<uint8_t>* placeQuery = nullptr;
 };
 
 /** What the mapping did with a keyframe, for the engine to apply. */
@@ -146,6 +149,10 @@ struct MappingUpdate
 	 *  anchor itself not listed). The engine writes them into the pose graph. */
 	uint64_t anchor = 0;
 	std::vector<std::pair<uint64_t, mrpt::poses::CPose3D>> T_anchor_kf;
+	/** The ORB descriptors (32 bytes each) of an image of the local map being built around
+	 *  the new keyframe, made as a local-map image is, for the loop detector's query (image
+	 *  against image); empty when the map manager makes none. */
+	std::vector<uint8_t> placeQuery;
 };
 
 /** Paper, "Mapping" and "Map Management": the only writer of the map model (keyframes,
