@@ -118,12 +118,7 @@ bow::BowVector localMapWords(const std::vector<Scan>& scans,
 				pts.push_back({w.x(), w.y(), w.z(), q.intensity});
 			}
 	}
-	raster::RasterParams mp;
-	mp.resolution_m = 0.2;
-	mp.maxRange_m = 60;
-	mp.minRange_m = 0;
-	mp.removeGround = false;
-	mp.belowGround_m = 1e6;
+	raster::RasterParams mp = raster::localMapRasterParams();
 	mp.canonicalYaw = gCanonical;
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mp, img);

@@ -100,14 +100,14 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		b = *words;
 	else
 		vocab_->transform(desc, b);
-	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops).
-	const double norm = selfScore(desc);
 	const auto results = db_.query(b, static_cast<std::size_t>(maxCandidates_ + 1));
 	if (results.empty())
 	{
 		res.reason = "candidates";
 		return res;
 	}
+	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops).
+	const double norm = selfScore(desc);
 	res.reason = "inliers";
 	LocalMap::ConstPtr bestMap;
 	Eigen::Isometry3d bestT = Eigen::Isometry3d::Identity();

@@ -138,11 +138,9 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	ba_.planar = p.getChoice("ba_dof", "full", {"planar", "full"}) == "planar";
 	mapPointsPerFeature_ =
 	    p.getChoice("map_points", "observations", {"observations", "tracks"}) == "observations";
-	mapRaster_.resolution_m = p.getDouble("map_resolution_m", 0.2);
-	mapRaster_.maxRange_m = p.getDouble("map_extent_m", 60.0);
-	mapRaster_.minRange_m = 0;
-	mapRaster_.removeGround = false;  // the keyframe clouds hold no ground already
-	mapRaster_.belowGround_m = 1e6;
+	// The keyframe clouds hold no ground already.
+	mapRaster_ = raster::localMapRasterParams(p.getDouble("map_resolution_m", 0.2),
+	                                          p.getDouble("map_extent_m", 60.0));
 	mapRaster_.canonicalYaw = p.getBool("canonical_yaw", false);
 	mapOrb_.numFeatures = p.getInt("map_features", 3000);
 	mapOrb_.levels = 3;

@@ -53,6 +53,21 @@ struct RasterParams
 	bool canonicalYaw = false;
 };
 
+/** How a local-map image is rasterized (the map manager's images and the queries made like
+ *  them): keyframes' non-ground points already moved into one frame, `resolution_m` a pixel
+ *  over +-`extent_m`, no range window, no ground removal and no outlier cut below it (the
+ *  points hold no ground; rasterize with an invalid plane). */
+inline RasterParams localMapRasterParams(double resolution_m = 0.2, double extent_m = 60.0)
+{
+	RasterParams p;
+	p.resolution_m = resolution_m;
+	p.maxRange_m = extent_m;
+	p.minRange_m = 0;
+	p.removeGround = false;
+	p.belowGround_m = 1e6;
+	return p;
+}
+
 struct RasterStats
 {
 	std::size_t input = 0, outliers = 0, ground = 0, projected = 0, pixels = 0;
