@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
+#include <tuple>
 
 #include "test_json.h"
 #include "test_support.h"
@@ -142,10 +143,12 @@ TEST(LoopClosure, ImageQueriesOfTheLocalMapBeingBuilt)
 		                                (dir / name).string());
 		return r;
 	};
-	// (query stamp, candidate stamp) -> normalized score, of the verified candidates.
+	// (query stamp, candidate stamp, inliers) -> normalized score, of the verified candidates
+	// (consecutive local maps share a keyframe: the inliers tell their candidates apart; the
+	// verification's seed is the query's and the local map's, the same in both runs).
 	const auto scores = [&](const std::string& name)
 	{
-		std::map<std::pair<double, double>, double> out;
+		std::map<std::tuple<double, double, int>, double> out;
 		std::ifstream f(dir / name / "loops.txt");
 		std::string line;
 		while (std::getline(f, line))
@@ -157,7 +160,7 @@ TEST(LoopClosure, ImageQueriesOfTheLocalMapBeingBuilt)
 			int inliers = 0, verified = 0;
 			ss >> qs >> cs >> score >> inliers >> verified;
 			if (verified)
-				out[{qs, cs}] = score;
+				out[{qs, cs, inliers}] = score;
 		}
 		return out;
 	};

@@ -329,8 +329,9 @@ MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& s
 		surfaces_[k->id] = features::voxelDownsample(scan.points, surfaceVoxel_m_, surfaceRange_m_);
 	if (placeQueryKeyframes_ > 0)
 	{
-		// The query window, like a local map, never spans a gap in tracking.
-		if (kf.afterLoss)
+		// The query window, like a local map, never spans a gap in tracking, nor a jump of a
+		// relocalization.
+		if (kf.afterLoss || kf.locatedAt)
 			queryWindow_.clear();
 		queryWindow_.emplace_back(k->id, cloud);
 		while (queryWindow_.size() > static_cast<std::size_t>(placeQueryKeyframes_))
@@ -370,6 +371,7 @@ MappingUpdate LocalMapManager::finish(const PoseView& poses)
 	for (const auto k : open_)
 		release(k);
 	open_.clear();
+	queryWindow_.clear();
 	return up;
 }
 
