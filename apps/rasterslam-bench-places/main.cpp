@@ -5,13 +5,18 @@
 // from the simulator); queries are scans of the same towns from other poses (to the side,
 // turned, or driven the other way) with other noise, and with --other-towns scans of towns
 // that are not in the database. Reports recall@1 and recall@5 against a random ranking, the
-// precision-recall curve of the best place's normalized score, and the query time.
+// precision-recall curve of the best place's normalized score, and the query time. With
+// --verify, the first candidates of each query are verified image against image (ORB
+// matches of the two images' keypoints, the 3D points behind them fitted by RANSAC), timed,
+// and a query's accepted place is judged by its registration against the simulator's truth.
 #include <mrpt/maps/registerAllClasses.h>
 #include <mrpt/obs/registerAllClasses.h>
 #include <rasterslam/bow/vocabulary.h>
 #include <rasterslam/cli/app.h>
 #include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/features/rigid_ransac.h>
 #include <rasterslam/raster/elevation_image.h>
 #include <rasterslam/sim/simulator.h>
 
@@ -22,6 +27,7 @@
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,7 +41,9 @@ const char* kDescription =
     "the BOW database (vocabulary tree, TF-IDF, L1 score) and reports recall@1, recall@5, the "
     "precision-recall curve of the best place's normalized score and the query time. A place "
     "is the elevation image of one scan, or with --local-maps a local-map image as the map "
-    "manager makes it; this measures the ranking alone, without verification.";
+    "manager makes it. With --verify the first candidates are also verified image against "
+    "image (matches, RANSAC of the 3D points behind them): the verification's time a candidate, "
+    "and the accepted places judged by their registration against the truth.";
 
 struct Args
 {
@@ -49,6 +57,20 @@ struct Args
 	int keyframes = 5;
 	double keyframeEvery_m = 4;
 	int otherTowns = 0;
+	bool verify = false;
+	int candidates = 5, minInliers = 25;
+	double poseTruth_m = 1.0, poseTruth_deg = 3.0;
+};
+
+/** What a place or a query keeps: its words, the score of its halves (the normalizer), and
+ *  with --verify its descriptors and the 3D point behind each (in the image's frame). */
+struct Described
+{
+	bow::BowVector words;
+	double selfScore = 0;
+	cv::Mat desc;
+	std::vector<Eigen::Vector3f> pts;
+	mrpt::poses::CPose3D frame;  //!< of the image, in the simulated world
 };
 
 struct Place
@@ -66,12 +88,36 @@ struct Place
 
 bool gCanonical = false;
 
-std::vector<bow::Descriptor> descriptorsOf(const cv::Mat& image, features::OrbExtractor& orb)
+bool gVerify = false;
+
+/** The words of an image whose pixels index `pts`; with --verify also the features that have
+ *  a point behind them (the loop detector's keyframes keep the same). */
+Described describe(const RasterFrame& f, const std::vector<PointXYZI>& pts,
+                   const bow::Vocabulary& vocab, features::OrbExtractor& orb,
+                   const mrpt::poses::CPose3D& frame)
 {
 	std::vector<cv::KeyPoint> kps;
 	cv::Mat desc;
-	orb.extract(image, kps, desc);
-	return bow::toDescriptors(desc.ptr<uint8_t>(), desc.empty() ? 0 : desc.rows);
+	orb.extract(f.image.asCvMatRef(), kps, desc);
+	const auto d = bow::toDescriptors(desc.ptr<uint8_t>(), desc.empty() ? 0 : desc.rows);
+	Described out;
+	vocab.transform(d, out.words);
+	out.selfScore = vocab.selfScore(d);
+	out.frame = frame;
+	if (gVerify)
+	{
+		out.desc.create(0, 32, CV_8U);
+		for (std::size_t i = 0; i < kps.size(); i++)
+		{
+			const int32_t idx = raster::pointAtPixel(f, kps[i].pt.x, kps[i].pt.y);
+			if (idx < 0)
+				continue;
+			const auto& q = pts[static_cast<std::size_t>(idx)];
+			out.pts.emplace_back(q.x, q.y, q.z);
+			out.desc.push_back(desc.row(static_cast<int>(i)));
+		}
+	}
+	return out;
 }
 
 RasterFrame rasterOf(const Scan& scan, uint32_t seed)
@@ -84,50 +130,79 @@ RasterFrame rasterOf(const Scan& scan, uint32_t seed)
 	return f;
 }
 
-/** A scan's words and (as the loop detector normalizes a query with no previous keyframe)
- *  the score of its even features against its odd ones. */
-bow::BowVector wordsOf(const Scan& scan, const bow::Vocabulary& vocab, features::OrbExtractor& orb,
-                       uint32_t seed, double* selfScore = nullptr)
+/** A scan's image described; its normalizer (as the loop detector normalizes a query with
+ *  no previous keyframe) is the score of its even features against its odd ones. */
+Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
+                    const bow::Vocabulary& vocab, features::OrbExtractor& orb, uint32_t seed)
 {
-	const auto desc = descriptorsOf(rasterOf(scan, seed).image.asCvMatRef(), orb);
-	bow::BowVector b;
-	vocab.transform(desc, b);
-	if (selfScore)
-		*selfScore = vocab.selfScore(desc);
-	return b;
+	return describe(rasterOf(scan, seed), scan.points, vocab, orb, pose);
 }
 
 /** The local-map image of scans at `poses` (the map manager's way): each scan's projected
  *  points (its image's, ground removed) moved into the first scan's frame, rasterized with
  *  the map manager's defaults (0.2 m a pixel, +-60 m, no ground removal). */
-bow::BowVector localMapWords(const std::vector<Scan>& scans,
-                             const std::vector<mrpt::poses::CPose3D>& poses,
-                             const bow::Vocabulary& vocab, features::OrbExtractor& orb,
-                             uint32_t seed, double* selfScore = nullptr)
+Described localMapPlace(const std::vector<Scan>& scans,
+                        const std::vector<mrpt::poses::CPose3D>& poses,
+                        const bow::Vocabulary& vocab, features::OrbExtractor& orb, uint32_t seed)
 {
 	std::vector<PointXYZI> pts;
 	for (std::size_t i = 0; i < scans.size(); i++)
 	{
 		const RasterFrame f = rasterOf(scans[i], seed + static_cast<uint32_t>(i));
-		const Eigen::Isometry3f T = toIsometry(poses[i] - poses[0]).cast<float>();
+		std::vector<PointXYZI> projected;
 		for (const auto idx : f.pixelToPoint)
 			if (idx >= 0)
-			{
-				const auto& q = scans[i].points[static_cast<std::size_t>(idx)];
-				const Eigen::Vector3f w = T * Eigen::Vector3f(q.x, q.y, q.z);
-				pts.push_back({w.x(), w.y(), w.z(), q.intensity});
-			}
+				projected.push_back(scans[i].points[static_cast<std::size_t>(idx)]);
+		raster::appendMoved(projected, toIsometry(poses[i] - poses[0]).cast<float>(), pts);
 	}
 	raster::RasterParams mp = raster::localMapRasterParams();
 	mp.canonicalYaw = gCanonical;
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mp, img);
-	const auto desc = descriptorsOf(img.image.asCvMatRef(), orb);
-	bow::BowVector b;
-	vocab.transform(desc, b);
-	if (selfScore)
-		*selfScore = vocab.selfScore(desc);
-	return b;
+	return describe(img, pts, vocab, orb, poses[0]);
+}
+
+/** One candidate verified: the query's features matched to the place's, the 3D points of
+ *  the matches fitted by RANSAC (the loop detector's defaults: ratio 0.9, 64 bits, 0.4 m,
+ *  1,000 iterations); the fit maps the query's frame into the place's. */
+struct Verification
+{
+	features::RigidResult fit;
+	std::size_t matches = 0;
+	double ms = 0;
+};
+
+Verification verifyPair(const Described& q, const Described& p, int minInliers, uint32_t seed)
+{
+	const auto t0 = std::chrono::steady_clock::now();
+	features::MatchParams mp;
+	mp.maxDistance = 64;
+	mp.ratio = 0.9f;
+	const auto matches = features::matchMutual(q.desc, p.desc, mp);
+	std::vector<Eigen::Vector3f> a, b;
+	for (const auto& m : matches)
+	{
+		a.push_back(q.pts[static_cast<std::size_t>(m.a)]);
+		b.push_back(p.pts[static_cast<std::size_t>(m.b)]);
+	}
+	features::RansacParams rp;
+	rp.inlierThreshold_m = 0.4;
+	rp.maxIterations = 1000;
+	rp.minInliers = minInliers;
+	Verification v;
+	v.fit = features::ransacRigid(a, b, rp, seed);
+	v.matches = matches.size();
+	v.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	return v;
+}
+
+/** Translation (m) and rotation (deg) between a fit and the true query-in-place pose. */
+std::pair<double, double> registrationError(const Eigen::Isometry3d& fit, const Described& q,
+                                            const Described& p)
+{
+	const Eigen::Isometry3d truth = toIsometry(q.frame - p.frame);
+	const Eigen::Isometry3d e = truth.inverse() * fit;
+	return {e.translation().norm(), Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI};
 }
 
 int run(const Args& a)
@@ -140,12 +215,21 @@ int run(const Args& a)
 	bow::Database db;
 	std::vector<Place> places;  // by entry id order of insertion
 	std::vector<bow::Database::EntryId> ids;
+	std::vector<Described> placeImages;  // with --verify, by place (their words dropped)
+	const auto keep = [&](Described&& d)
+	{
+		ids.push_back(db.add(d.words));
+		if (a.verify)
+		{
+			d.words.clear();
+			placeImages.push_back(std::move(d));
+		}
+	};
 	struct Query
 	{
 		int town;  // -1: a town not in the database
 		Eigen::Vector3d position;
-		bow::BowVector words;
-		double selfScore;
+		Described img;
 		bool opposite;
 	};
 	std::vector<Query> queries;
@@ -188,15 +272,14 @@ int run(const Args& a)
 					                             poses.back().z());
 				}
 				scansSimulated += scans.size();
-				ids.push_back(
-				    db.add(localMapWords(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 1))));
+				keep(localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 1)));
 			}
 			else
 			{
 				const auto pose = s.sensorPose(k);
 				const Scan scan = s.scanFrom(pose, k, s.stamp(k));
 				++scansSimulated;
-				ids.push_back(db.add(wordsOf(scan, *vocab, orb, static_cast<uint32_t>(k + 1))));
+				keep(scanPlace(scan, pose, *vocab, orb, static_cast<uint32_t>(k + 1)));
 				place.positions.emplace_back(pose.x(), pose.y(), pose.z());
 			}
 			places.push_back(std::move(place));
@@ -212,8 +295,7 @@ int run(const Args& a)
 			const double yaw = (q % 2 ? 180.0 : a.yaw_deg) * M_PI / 180;
 			const mrpt::poses::CPose3D aside(0, side, 0, yaw, 0, 0);
 			const auto pose = s.sensorPose(k) + aside;
-			double self = 0;
-			bow::BowVector words;
+			Described img;
 			if (a.queryLocalMaps)
 			{
 				// A local map of the query's drive around k, its keyframes in the order of
@@ -231,17 +313,16 @@ int run(const Args& a)
 					scans.push_back(s.scanFrom(poses.back(), 1000000 + kk, s.stamp(kk)));
 				}
 				scansSimulated += scans.size();
-				words =
-				    localMapWords(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 7), &self);
+				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 7));
 			}
 			else
 			{
 				const Scan scan = s.scanFrom(pose, 1000000 + k, s.stamp(k));
 				++scansSimulated;
-				words = wordsOf(scan, *vocab, orb, static_cast<uint32_t>(k + 7), &self);
+				img = scanPlace(scan, pose, *vocab, orb, static_cast<uint32_t>(k + 7));
 			}
 			queries.push_back({other ? -1 : t, Eigen::Vector3d(pose.x(), pose.y(), pose.z()),
-			                   std::move(words), self, q % 2 == 1});
+			                   std::move(img), q % 2 == 1});
 		}
 	}
 	const double tBuild =
@@ -252,22 +333,69 @@ int run(const Args& a)
 	// The best place of each query: its normalized score, and whether it is a true place
 	// (false for every query of another town).
 	std::vector<std::pair<double, bool>> best;
-	for (const auto& q : queries)
+	// --verify: each candidate's time and inliers (those of wrong registrations apart), and
+	// the place each query accepts (the verified candidate with the most inliers).
+	struct Accepted
 	{
+		std::size_t inliers;
+		bool right;
+		double error_m, error_deg;
+		std::size_t query, rank, matches;
+		std::size_t secondInliers;  //!< the most inliers among the query's other candidates
+		bool wrongPlace;            //!< another town, or the query's town farther than --truth
+	};
+	std::vector<Accepted> accepted;
+	std::vector<double> verifyMs;
+	std::size_t wrongInliersMax = 0, verifiedRight = 0;
+	for (std::size_t qi = 0; qi < queries.size(); qi++)
+	{
+		const auto& q = queries[qi];
 		const auto tq = std::chrono::steady_clock::now();
-		const auto res = db.query(q.words, 5);
+		const auto res = db.query(q.img.words, std::max(5, a.candidates));
 		ms.push_back(
 		    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq)
 		        .count());
+		const auto placeOf = [&](bow::Database::EntryId e)
+		{ return static_cast<std::size_t>(std::find(ids.begin(), ids.end(), e) - ids.begin()); };
 		const auto isTrue = [&](bow::Database::EntryId e)
 		{
-			const auto i =
-			    static_cast<std::size_t>(std::find(ids.begin(), ids.end(), e) - ids.begin());
+			const auto i = placeOf(e);
 			return places[i].town == q.town && places[i].distanceTo(q.position) <= a.truth_m;
 		};
 		if (!res.empty())
-			best.emplace_back(q.selfScore > 1e-6 ? res.front().score / q.selfScore : 0,
+			best.emplace_back(q.img.selfScore > 1e-6 ? res.front().score / q.img.selfScore : 0,
 			                  q.town >= 0 && isTrue(res.front().entry));
+		if (a.verify)
+		{
+			std::optional<Accepted> acc;
+			std::vector<std::size_t> counts;
+			for (std::size_t r = 0; r < res.size() && r < static_cast<std::size_t>(a.candidates);
+			     r++)
+			{
+				const auto i = placeOf(res[r].entry);
+				const auto v = verifyPair(q.img, placeImages[i], a.minInliers,
+				                          static_cast<uint32_t>(100 * qi + r + 1));
+				verifyMs.push_back(v.ms);
+				const auto n = v.fit.inliers.size();
+				const auto [em, ed] = n >= 3 ? registrationError(v.fit.T, q.img, placeImages[i])
+				                             : std::make_pair(1e9, 180.0);
+				const bool right =
+				    places[i].town == q.town && em <= a.poseTruth_m && ed <= a.poseTruth_deg;
+				if (!right)
+					wrongInliersMax = std::max(wrongInliersMax, n);
+				verifiedRight += right;
+				counts.push_back(n);
+				if (v.fit.ok && (!acc || n > acc->inliers))
+					acc = Accepted{n, right, em, ed, qi, r, v.matches, 0, !isTrue(res[r].entry)};
+			}
+			if (acc)
+			{
+				for (std::size_t r = 0; r < counts.size(); r++)
+					if (r != acc->rank)
+						acc->secondInliers = std::max(acc->secondInliers, counts[r]);
+				accepted.push_back(*acc);
+			}
+		}
 		if (q.town < 0)
 		{
 			++others;
@@ -280,7 +408,7 @@ int run(const Args& a)
 			continue;
 		withTruth++;
 		opp += q.opposite;
-		for (std::size_t r = 0; r < res.size(); r++)
+		for (std::size_t r = 0; r < res.size() && r < 5; r++)
 			if (isTrue(res[r].entry))
 			{
 				at1 += r == 0;
@@ -336,6 +464,57 @@ int run(const Args& a)
 				recallAtPrecision1 = recall;
 		}
 	}
+	// --verify: the accepted places, and the recall at precision 1 when a bound on the
+	// inliers (at least min_inliers) decides instead.
+	std::size_t accRight = 0;
+	std::vector<double> rightErr_m, rightErr_deg;
+	std::size_t rightInliersMin = std::numeric_limits<std::size_t>::max();
+	double recallAtPrecision1Inliers = 0;
+	std::size_t inlierBound = 0;
+	{
+		auto sorted = accepted;
+		std::sort(sorted.begin(), sorted.end(),
+		          [](const auto& x, const auto& y) { return x.inliers > y.inliers; });
+		std::size_t n = 0, right = 0;
+		for (std::size_t i = 0; i < sorted.size(); i++)
+		{
+			++n;
+			right += sorted[i].right;
+			if (sorted[i].right)
+			{
+				rightErr_m.push_back(sorted[i].error_m);
+				rightErr_deg.push_back(sorted[i].error_deg);
+				rightInliersMin = std::min(rightInliersMin, sorted[i].inliers);
+			}
+			if (i + 1 < sorted.size() && sorted[i + 1].inliers == sorted[i].inliers)
+				continue;
+			if (right == n && withTruth)
+			{
+				recallAtPrecision1Inliers =
+				    static_cast<double>(right) / static_cast<double>(withTruth);
+				inlierBound = sorted[i].inliers;
+			}
+		}
+		accRight = right;
+	}
+	const auto medianOf = [](std::vector<double> v)
+	{
+		if (v.empty())
+			return 0.0;
+		std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+		return v[v.size() / 2];
+	};
+	std::sort(verifyMs.begin(), verifyMs.end());
+	const double vMedian = medianOf(verifyMs),
+	             vP95 = verifyMs.empty() ? 0 : verifyMs[verifyMs.size() * 95 / 100],
+	             vMax = verifyMs.empty() ? 0 : verifyMs.back();
+	const double vRecall =
+	    withTruth ? static_cast<double>(accRight) / static_cast<double>(withTruth) : 0;
+	const double vPrecision =
+	    accepted.empty() ? 1.0
+	                     : static_cast<double>(accRight) / static_cast<double>(accepted.size());
+	if (rightInliersMin == std::numeric_limits<std::size_t>::max())
+		rightInliersMin = 0;
 	if (a.json)
 	{
 		nlohmann::ordered_json j;
@@ -362,6 +541,27 @@ int run(const Args& a)
 		j["query_ms_median"] = median;
 		j["query_ms_max"] = worst;
 		j["build_s"] = tBuild;
+		if (a.verify)
+		{
+			auto& v = j["verification"];
+			v["candidates_a_query"] = a.candidates;
+			v["min_inliers"] = a.minInliers;
+			v["verified"] = verifyMs.size();
+			v["right_registrations"] = verifiedRight;
+			v["ms_median"] = vMedian;
+			v["ms_p95"] = vP95;
+			v["ms_max"] = vMax;
+			v["accepted"] = accepted.size();
+			v["accepted_right"] = accRight;
+			v["recall"] = vRecall;
+			v["precision"] = vPrecision;
+			v["wrong_inliers_max"] = wrongInliersMax;
+			v["right_inliers_min"] = rightInliersMin;
+			v["recall_at_precision_1"] = recallAtPrecision1Inliers;
+			v["inlier_bound_at_precision_1"] = inlierBound;
+			v["right_error_m_median"] = medianOf(rightErr_m);
+			v["right_error_deg_median"] = medianOf(rightErr_deg);
+		}
 		std::cout << j.dump() << "\n";
 		return 0;
 	}
@@ -386,6 +586,27 @@ int run(const Args& a)
 			std::printf("  %9.3f  %9.3f  %6.3f\n", curve[i].bound, curve[i].precision,
 			            curve[i].recall);
 	std::printf("recall at precision 1: %.3f\n", recallAtPrecision1);
+	if (a.verify)
+		std::printf(
+		    "verified %zu candidates (the first %d of each query, image against image): %.2f ms "
+		    "median, %.2f ms p95, %.2f ms max a candidate; %zu right registrations\n"
+		    "accepted (at least %d inliers, the most): %zu, right %zu (within %.1f m and %.1f "
+		    "deg; median error %.3f m, %.2f deg): recall %.3f, precision %.3f\n"
+		    "inliers: wrong registrations up to %zu, accepted right ones from %zu; with the "
+		    "bound at %zu, precision 1 at recall %.3f\n",
+		    verifyMs.size(), a.candidates, vMedian, vP95, vMax, verifiedRight, a.minInliers,
+		    accepted.size(), accRight, a.poseTruth_m, a.poseTruth_deg, medianOf(rightErr_m),
+		    medianOf(rightErr_deg), vRecall, vPrecision, wrongInliersMax, rightInliersMin,
+		    inlierBound, recallAtPrecision1Inliers);
+	for (const auto& acc : accepted)
+		if (!acc.right)
+			std::printf(
+			    "  wrong: query %zu (%s, %s), candidate %zu: %zu inliers of %zu matches, the "
+			    "next candidate %zu; %s, registration off by %.2f m, %.1f deg\n",
+			    acc.query, queries[acc.query].town < 0 ? "other town" : "own town",
+			    queries[acc.query].opposite ? "driven the other way" : "aside and turned",
+			    acc.rank + 1, acc.inliers, acc.matches, acc.secondInliers,
+			    acc.wrongPlace ? "a wrong place" : "a true place", acc.error_m, acc.error_deg);
 	return 0;
 }
 }  // namespace
@@ -445,12 +666,31 @@ int main(int argc, char** argv)
 	    ->type_name("N");
 	app.add_flag("--canonical", gCanonical,
 	             "rasterize each scan turned so that its dominant edges run along the image axes");
+	app.add_flag("--verify", args.verify,
+	             "verify the first --candidates places of each query image against image and "
+	             "judge the accepted place by its registration");
+	app.add_option("--candidates", args.candidates, "places verified a query (5)")
+	    ->check(CLI::Range(1, 100).description(""))
+	    ->type_name("N");
+	app.add_option("--min-inliers", args.minInliers,
+	               "RANSAC inliers a verified place needs (25, the loop detector's min_inliers)")
+	    ->check(CLI::Range(3, 100000).description(""))
+	    ->type_name("N");
+	app.add_option("--pose-truth", args.poseTruth_m,
+	               "a registration within this of the truth is right (1 m)")
+	    ->check(CLI::Range(0.01, 100.0).description(""))
+	    ->type_name("M");
+	app.add_option("--pose-truth-deg", args.poseTruth_deg,
+	               "... and within this of the truth's rotation (3 deg)")
+	    ->check(CLI::Range(0.01, 180.0).description(""))
+	    ->type_name("DEG");
 	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
 		return rc;
 	mrpt::maps::registerAllClasses_mrpt_maps();
 	mrpt::obs::registerAllClasses_mrpt_obs();
 	try
 	{
+		gVerify = args.verify;
 		return run(args);
 	}
 	catch (const std::exception& e)

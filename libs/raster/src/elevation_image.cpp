@@ -217,4 +217,15 @@ int32_t pointAtPixel(const RasterFrame& f, float u, float v, int radius_px)
 	return best;
 }
 
+void appendMoved(const std::vector<PointXYZI>& pts, const Eigen::Isometry3f& T,
+                 std::vector<PointXYZI>& out)
+{
+	out.reserve(out.size() + pts.size());
+	for (const auto& q : pts)
+	{
+		const Eigen::Vector3f w = T * Eigen::Vector3f(q.x, q.y, q.z);
+		out.push_back({w.x(), w.y(), w.z(), q.intensity});
+	}
+}
+
 }  // namespace rasterslam::raster

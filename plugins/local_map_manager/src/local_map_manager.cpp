@@ -65,7 +65,7 @@ class LocalMapManager : public MapManager
 	/** place_query_keyframes > 0: the descriptors of the image of the last keyframes' clouds
 	 *  (the local map being built around keyframe `kf`) in kf's frame, rasterized as a
 	 *  local-map image is: the loop detector's query, image against image. */
-	std::vector<uint8_t> placeQuery(uint64_t kf, const PoseView& poses);
+	std::vector<uint8_t> placeQueryDescriptors(uint64_t kf, const PoseView& poses);
 
 	// parameters
 	int keyframesPerMap_ = 5;
@@ -340,7 +340,7 @@ MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& s
 
 	MappingUpdate up;
 	if (placeQueryKeyframes_ > 0)
-		up.placeQuery = placeQuery(k->id, poses);
+		up.placeQuery = placeQueryDescriptors(k->id, poses);
 	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.
 	if (kf.afterLoss && !open_.empty())
 		finishOpen(poses, up, false);
@@ -490,12 +490,7 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 		const auto it = clouds_.find(ids[i]);
 		if (it == clouds_.end())
 			continue;
-		const Eigen::Isometry3f Tf = T[i].cast<float>();
-		for (const auto& q : it->second)
-		{
-			const Eigen::Vector3f w = Tf * Eigen::Vector3f(q.x, q.y, q.z);
-			pts.push_back({w.x(), w.y(), w.z(), q.intensity});
-		}
+		raster::appendMoved(it->second, T[i].cast<float>(), pts);
 	}
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
@@ -695,7 +690,7 @@ std::vector<uint8_t> LocalMapManager::wordsOfImage(const cv::Mat& image)
 	                     : std::vector<uint8_t>{};
 }
 
-std::vector<uint8_t> LocalMapManager::placeQuery(uint64_t kf, const PoseView& poses)
+std::vector<uint8_t> LocalMapManager::placeQueryDescriptors(uint64_t kf, const PoseView& poses)
 {
 	const auto T_world_kf = poses.at(kf);
 	std::vector<PointXYZI> pts;
@@ -704,12 +699,7 @@ std::vector<uint8_t> LocalMapManager::placeQuery(uint64_t kf, const PoseView& po
 		const auto pose = poses(id);
 		if (!pose)
 			continue;
-		const Eigen::Isometry3f T = toIsometry(*pose - T_world_kf).cast<float>();
-		for (const auto& q : cloud)
-		{
-			const Eigen::Vector3f w = T * Eigen::Vector3f(q.x, q.y, q.z);
-			pts.push_back({w.x(), w.y(), w.z(), q.intensity});
-		}
+		raster::appendMoved(cloud, toIsometry(*pose - T_world_kf).cast<float>(), pts);
 	}
 	if (pts.empty())
 		return {};

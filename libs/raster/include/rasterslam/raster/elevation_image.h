@@ -4,6 +4,7 @@
 #include <rasterslam/core/plugin.h>
 #include <rasterslam/raster/ground_plane.h>
 
+#include <Eigen/Geometry>
 #include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
@@ -67,6 +68,11 @@ inline RasterParams localMapRasterParams(double resolution_m = 0.2, double exten
 	p.belowGround_m = 1e6;
 	return p;
 }
+
+/** Appends `pts` moved by `T` (p' = T p, intensities kept) to `out`: how keyframes' points
+ *  are gathered into one local map's frame before localMapRasterParams() rasterizes them. */
+void appendMoved(const std::vector<PointXYZI>& pts, const Eigen::Isometry3f& T,
+                 std::vector<PointXYZI>& out);
 
 struct RasterStats
 {
