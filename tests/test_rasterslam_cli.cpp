@@ -166,6 +166,17 @@ TEST(RasterslamCli, DefaultRunIsTheWholeSystemAndNamedConfigsWork)
 	EXPECT_FALSE(trk["config"].has("loop_detector"));
 	EXPECT_FALSE(trk["config"].has("map_manager"));
 	EXPECT_EQ(trk["counts"]["local_maps"].as<int>(), 0);
+
+	// The lifelong config: each keyframe's loop query is the image of the local map being
+	// built (also what the sanitized run reaches of that code: the loop tests are left out).
+	r = test::runCommand(rs("run --rawlog " + rawlog + " --out " + (dir / "life").string() +
+	                        " --config lifelong --quiet"));
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const auto life = loadYamlFile((dir / "life" / "run.yaml").string());
+	EXPECT_TRUE(contains(life["input"]["config"].as<std::string>(), "config/lifelong.yaml"));
+	EXPECT_EQ(life["config"]["map_manager"]["params"]["place_query_keyframes"].as<int>(), 5);
+	EXPECT_GE(life["counts"]["local_maps"].as<int>(), 1);
+	EXPECT_GE(life["counts"]["keyframes"].as<int>(), 5);
 }
 
 TEST(RasterslamCli, ExportRoundTripGivesTheSameScansAndTrajectory)
