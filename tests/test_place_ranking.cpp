@@ -90,6 +90,7 @@ TEST(PlaceRanking, LocalMapQueriesFindLocalMaps)
 	EXPECT_EQ(v["precision"].get<double>(), 1.0) << "a wrong place was accepted";
 	EXPECT_GE(v["recall"].get<double>(), 0.85);
 	EXPECT_LT(v["wrong_inliers_max"].get<int>(), 25);
+	EXPECT_LE(v["wrong_place_inliers_max"].get<int>(), v["wrong_inliers_max"].get<int>());
 	EXPECT_GE(v["right_inliers_min"].get<int>(), 25);
 	EXPECT_LT(v["right_error_m_median"].get<double>(), 0.2);
 	EXPECT_LT(v["right_error_deg_median"].get<double>(), 0.5);
