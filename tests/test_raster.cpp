@@ -448,3 +448,23 @@ TEST(RasterOutliers, RangeWindowAndBelowGround)
 	st = raster::rasterizeElevation(pts, raster::Plane(), p, f);
 	EXPECT_EQ(st.outliers, 4u);
 }
+
+TEST(Raster, AppendMovedTransformsIntoTheTargetFrameAndKeepsWhatWasThere)
+{
+	// p' = T p: turned 90 degrees about z, then moved by (1, 2, 3).
+	Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
+	T.linear() = Eigen::AngleAxisf(static_cast<float>(M_PI / 2), Eigen::Vector3f::UnitZ()).matrix();
+	T.translation() = Eigen::Vector3f(1, 2, 3);
+	std::vector<PointXYZI> out{{9, 9, 9, 0.1f}};
+	raster::appendMoved({{1, 0, 0, 0.5f}, {0, 2, -1, 0.25f}}, T, out);
+	ASSERT_EQ(out.size(), 3u);
+	EXPECT_EQ(out[0].x, 9.f);  // what was there stays
+	EXPECT_NEAR(out[1].x, 1, 1e-6);
+	EXPECT_NEAR(out[1].y, 3, 1e-6);
+	EXPECT_NEAR(out[1].z, 3, 1e-6);
+	EXPECT_EQ(out[1].intensity, 0.5f);
+	EXPECT_NEAR(out[2].x, -1, 1e-6);
+	EXPECT_NEAR(out[2].y, 2, 1e-6);
+	EXPECT_NEAR(out[2].z, 2, 1e-6);
+	EXPECT_EQ(out[2].intensity, 0.25f);
+}

@@ -343,6 +343,7 @@ int run(const Args& a)
 		std::size_t query, rank, matches;
 		std::size_t secondInliers;  //!< the most inliers among the query's other candidates
 		bool wrongPlace;            //!< another town, or the query's town farther than --truth
+		bool hasTruth;  //!< the query has a true place: a right one counts in the recall
 	};
 	std::vector<Accepted> accepted;
 	std::vector<double> verifyMs;
@@ -365,6 +366,9 @@ int run(const Args& a)
 			const auto i = placeOf(e);
 			return places[i].town == q.town && places[i].distanceTo(q.position) <= a.truth_m;
 		};
+		bool hasTruth = false;  // a place of the query's town within --truth
+		for (const auto& p : places)
+			hasTruth = hasTruth || (p.town == q.town && p.distanceTo(q.position) <= a.truth_m);
 		if (!res.empty())
 			best.emplace_back(q.img.selfScore > 1e-6 ? res.front().score / q.img.selfScore : 0,
 			                  q.town >= 0 && isTrue(res.front().entry));
@@ -391,7 +395,19 @@ int run(const Args& a)
 				verifiedRight += right;
 				counts.push_back(n);
 				if (v.fit.ok && (!acc || n > acc->inliers))
-					acc = Accepted{n, right, em, ed, qi, r, v.matches, 0, !isTrue(res[r].entry)};
+				{
+					acc.emplace();
+					acc->inliers = n;
+					acc->right = right;
+					acc->error_m = em;
+					acc->error_deg = ed;
+					acc->query = qi;
+					acc->rank = r;
+					acc->matches = v.matches;
+					acc->secondInliers = 0;
+					acc->wrongPlace = !isTrue(res[r].entry);
+					acc->hasTruth = hasTruth;
+				}
 			}
 			if (acc)
 			{
@@ -406,10 +422,7 @@ int run(const Args& a)
 			++others;
 			continue;
 		}
-		bool any = false;
-		for (const auto& p : places)
-			any = any || (p.town == q.town && p.distanceTo(q.position) <= a.truth_m);
-		if (!any)
+		if (!hasTruth)
 			continue;
 		withTruth++;
 		opp += q.opposite;
@@ -470,8 +483,9 @@ int run(const Args& a)
 		}
 	}
 	// --verify: the accepted places, and the recall at precision 1 when a bound on the
-	// inliers (at least min_inliers) decides instead.
-	std::size_t accRight = 0;
+	// inliers (at least min_inliers) decides instead. Precision counts every accepted place;
+	// recall the right ones of the queries that have a true place, over those queries.
+	std::size_t accRight = 0, accRightWithTruth = 0;
 	std::vector<double> rightErr_m, rightErr_deg;
 	std::size_t rightInliersMin = std::numeric_limits<std::size_t>::max();
 	double recallAtPrecision1Inliers = 0;
@@ -480,11 +494,12 @@ int run(const Args& a)
 		auto sorted = accepted;
 		std::sort(sorted.begin(), sorted.end(),
 		          [](const auto& x, const auto& y) { return x.inliers > y.inliers; });
-		std::size_t n = 0, right = 0;
+		std::size_t n = 0, right = 0, rightWithTruth = 0;
 		for (std::size_t i = 0; i < sorted.size(); i++)
 		{
 			++n;
 			right += sorted[i].right;
+			rightWithTruth += sorted[i].right && sorted[i].hasTruth;
 			if (sorted[i].right)
 			{
 				rightErr_m.push_back(sorted[i].error_m);
@@ -496,11 +511,12 @@ int run(const Args& a)
 			if (right == n && withTruth)
 			{
 				recallAtPrecision1Inliers =
-				    static_cast<double>(right) / static_cast<double>(withTruth);
+				    static_cast<double>(rightWithTruth) / static_cast<double>(withTruth);
 				inlierBound = sorted[i].inliers;
 			}
 		}
 		accRight = right;
+		accRightWithTruth = rightWithTruth;
 	}
 	const auto medianOf = [](std::vector<double> v)
 	{
@@ -511,10 +527,11 @@ int run(const Args& a)
 	};
 	std::sort(verifyMs.begin(), verifyMs.end());
 	const double vMedian = medianOf(verifyMs),
-	             vP95 = verifyMs.empty() ? 0 : verifyMs[verifyMs.size() * 95 / 100],
+	             // nearest rank: the smallest time that 95 % of the candidates do not exceed
+	    vP95 = verifyMs.empty() ? 0 : verifyMs[(verifyMs.size() * 95 + 99) / 100 - 1],
 	             vMax = verifyMs.empty() ? 0 : verifyMs.back();
 	const double vRecall =
-	    withTruth ? static_cast<double>(accRight) / static_cast<double>(withTruth) : 0;
+	    withTruth ? static_cast<double>(accRightWithTruth) / static_cast<double>(withTruth) : 0;
 	const double vPrecision =
 	    accepted.empty() ? 1.0
 	                     : static_cast<double>(accRight) / static_cast<double>(accepted.size());
@@ -673,22 +690,27 @@ int main(int argc, char** argv)
 	    ->type_name("N");
 	app.add_flag("--canonical", gCanonical,
 	             "rasterize each scan turned so that its dominant edges run along the image axes");
-	app.add_flag("--verify", args.verify,
-	             "verify the first --candidates places of each query image against image and "
-	             "judge the accepted place by its registration");
+	auto* verifyFlag =
+	    app.add_flag("--verify", args.verify,
+	                 "verify the first --candidates places of each query image against image and "
+	                 "judge the accepted place by its registration");
 	app.add_option("--candidates", args.candidates, "places verified a query (5)")
+	    ->needs(verifyFlag)
 	    ->check(CLI::Range(1, 100).description(""))
 	    ->type_name("N");
 	app.add_option("--min-inliers", args.minInliers,
 	               "RANSAC inliers a verified place needs (25, the loop detector's min_inliers)")
+	    ->needs(verifyFlag)
 	    ->check(CLI::Range(3, 100000).description(""))
 	    ->type_name("N");
 	app.add_option("--pose-truth", args.poseTruth_m,
 	               "a registration within this of the truth is right (1 m)")
+	    ->needs(verifyFlag)
 	    ->check(CLI::Range(0.01, 100.0).description(""))
 	    ->type_name("M");
 	app.add_option("--pose-truth-deg", args.poseTruth_deg,
 	               "... and within this of the truth's rotation (3 deg)")
+	    ->needs(verifyFlag)
 	    ->check(CLI::Range(0.01, 180.0).description(""))
 	    ->type_name("DEG");
 	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
