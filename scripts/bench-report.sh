@@ -160,8 +160,10 @@ if [ "$mode" = full ]; then
     --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 22 --queries 10
   section "Place recognition among 1,000 local maps" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
     --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5
-  section "Place recognition among 1,000 local maps, local-map queries, verified" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
-    --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5 --query-local-maps --verify
+  street=()  # the KITTI sample's real street among the towns, when it is there
+  [ -d "$D/velodyne" ] && street=(--kitti "$D")
+  section "Place recognition among 1,000 local maps and the KITTI street, local-map queries, verified" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
+    --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5 --query-local-maps --verify "${street[@]}"
   section "Map store: save and load of 1,000 local maps" "$bin/rasterslam-bench-map-store"
 fi
 

@@ -9,13 +9,13 @@ using namespace rasterslam;
 
 namespace
 {
-nlohmann::json bench(const std::string& extra, int towns = 5)
+nlohmann::json bench(const std::string& extra, int towns = 5, int queries = 10)
 {
 	const auto r = test::runCommand(
 	    test::bin("rasterslam-bench-places") + " --json --towns " + std::to_string(towns) +
-	    " --queries 10 --scenario " + test::sourcePath("rawlogs/town-loop.yaml") +
-	    " --vocabulary " + test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + " " +
-	    extra);
+	    " --queries " + std::to_string(queries) + " --scenario " +
+	    test::sourcePath("rawlogs/town-loop.yaml") + " --vocabulary " +
+	    test::sourcePath("share/rasterslam/vocab/elevation-k10l4.vocab") + " " + extra);
 	EXPECT_EQ(r.exitCode, 0) << r.output;
 	std::printf("%s", r.output.c_str());
 	return test::parseJson(r.output);
@@ -93,4 +93,29 @@ TEST(PlaceRanking, LocalMapQueriesFindLocalMaps)
 	EXPECT_LT(v["wrong_inliers_max"].get<int>(), 25);
 	EXPECT_LT(v["right_error_m_median"].get<double>(), 0.2);
 	EXPECT_LT(v["right_error_deg_median"].get<double>(), 0.5);
+}
+
+TEST(PlaceRanking, KittiStreetAmongSimulatedDistractors)
+{
+	// The real street of the KITTI sample joins the database: its local maps are made of the
+	// real scans at their poses, its 20 queries are local maps rendered from those scans
+	// 3 m aside and turned by 20 degrees, or driven the other way. Among the local maps of
+	// three simulated towns (5 of 77 places are the street's) a random ranking finds the
+	// street's true place among the first 5 about one time in ten. Measured: recall@5 1.0,
+	// recall@1 0.9, all 20 verified right (0.20 m, 0.18 deg in the median), none wrong.
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto j = bench(
+	    "--local-maps --query-local-maps --verify --kitti " + test::sharedData("kitti00-0000-0100"),
+	    3, 4);
+	ASSERT_TRUE(j.contains("kitti_street")) << j.dump();
+	const auto& k = j.at("kitti_street");
+	ASSERT_EQ(k["places"].get<int>(), 5);
+	ASSERT_EQ(k["queries"].get<int>(), 20);
+	EXPECT_GE(k["recall_at_5"].get<double>(), 0.9);
+	EXPECT_GE(k["recall_at_1"].get<double>(), 0.8);
+	EXPECT_GE(k["verified_recall"].get<double>(), 0.9);
+	EXPECT_EQ(k["accepted_wrong"].get<int>(), 0);
+	EXPECT_LT(k["right_error_m_median"].get<double>(), 0.3);
+	EXPECT_LT(k["right_error_deg_median"].get<double>(), 1.0);
+	EXPECT_EQ(j["verification"]["precision"].get<double>(), 1.0) << "a wrong place was accepted";
 }

@@ -17,7 +17,10 @@
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/rigid_ransac.h>
+#include <rasterslam/io/kitti.h>
+#include <rasterslam/io/trajectory_io.h>
 #include <rasterslam/raster/elevation_image.h>
+#include <rasterslam/sim/cloud_world.h>
 #include <rasterslam/sim/simulator.h>
 
 #include <algorithm>
@@ -43,7 +46,9 @@ const char* kDescription =
     "is the elevation image of one scan, or with --local-maps a local-map image as the map "
     "manager makes it. With --verify the first candidates are also verified image against "
     "image (matches, RANSAC of the 3D points behind them): the verification's time a candidate, "
-    "and the accepted places judged by their registration against the truth.";
+    "and the accepted places judged by their registration against the truth. With --kitti the "
+    "real street of a KITTI folder joins them: its places are made of the real scans, its "
+    "queries rendered from those scans at other poses (rasterslam-sim --kitti's renderer).";
 
 struct Args
 {
@@ -59,6 +64,8 @@ struct Args
 	int otherTowns = 0;
 	bool verify = false;
 	int candidates = 5, minInliers = 25;
+	std::string kitti;  //!< a KITTI folder: its street joins the database as one more town
+	int kittiQueries = 20;
 	double poseTruth_m = 1.0, poseTruth_deg = 3.0;
 };
 
@@ -325,6 +332,138 @@ int run(const Args& a)
 			                   std::move(img), q % 2 == 1});
 		}
 	}
+	// --kitti: the real street as one more town. Its places are made of the real scans at
+	// their (SemanticKITTI) poses, as a map of the recorded drive would hold them; its queries
+	// are rendered from the merged scans at poses the drive never took (aside and turned, or
+	// driven the other way), so the truth is exact and the geometry real.
+	const int kittiTown = a.towns + a.otherTowns;
+	std::size_t kittiPlaces = 0;
+	if (!a.kitti.empty())
+	{
+		const std::string D = a.kitti;
+		const auto bins = io::listKittiBins(D + "/velodyne");
+		const std::string posesFile = D + "/poses_semantickitti.txt";
+		const auto route = io::kittiCameraToVelodyne(io::loadTrajectory(posesFile),
+		                                             io::loadKittiCalibTr(D + "/calib.txt"));
+		if (bins.size() < 2)
+			throw std::runtime_error(D + "/velodyne: " + std::to_string(bins.size()) +
+			                         " scans; a street needs at least 2");
+		if (route.size() < bins.size())
+			throw std::runtime_error(posesFile + ": " + std::to_string(route.size()) +
+			                         " poses for " + std::to_string(bins.size()) + " scans in " +
+			                         D + "/velodyne");
+		const std::size_t n = bins.size();
+		std::vector<Scan> real(n);
+		sim::CloudWorld world;
+		std::vector<double> along(n, 0);  // metres travelled to each scan
+		for (std::size_t i = 0; i < n; i++)
+		{
+			real[i].index = i;
+			real[i].points = io::loadKittiBin(bins[i]);
+			world.add(real[i].points, route[i].pose);
+			if (i > 0)
+				along[i] = along[i - 1] +
+				           (route[i].pose.translation() - route[i - 1].pose.translation()).norm();
+		}
+		const auto lidar =
+		    sim::LidarModel::fromRingOrderedScan("kitti-hdl64", real[0].points, 2083, 2.5, 120);
+		const auto poseOf = [](const Eigen::Isometry3d& T)
+		{ return mrpt::poses::CPose3D(mrpt::math::CMatrixDouble44(T.matrix())); };
+		// The scan at (or just past) `m` metres along the route.
+		const auto scanAt = [&](double m)
+		{
+			return static_cast<std::size_t>(std::min<std::ptrdiff_t>(
+			    static_cast<std::ptrdiff_t>(n) - 1,
+			    std::lower_bound(along.begin(), along.end(), m - 1e-9) - along.begin()));
+		};
+		const double length = along.back();
+		const double kfStep = a.localMaps || a.queryLocalMaps ? a.keyframeEvery_m : a.every_m;
+		if (a.localMaps)
+		{
+			// Keyframes every keyframeEvery_m of the drive; a local map of `keyframes` of them,
+			// the next starting at its last one.
+			std::vector<std::size_t> kfs;
+			for (double m = 0; m <= length; m += a.keyframeEvery_m)
+				kfs.push_back(scanAt(m));
+			const auto per = static_cast<std::size_t>(std::max(1, a.keyframes - 1));
+			for (std::size_t k = 0; k + 1 < kfs.size() || (k == 0 && !kfs.empty()); k += per)
+			{
+				Place place;
+				place.town = kittiTown;
+				std::vector<Scan> scans;
+				std::vector<mrpt::poses::CPose3D> poses;
+				for (std::size_t i = k; i < kfs.size() && i < k + per + 1; i++)
+				{
+					scans.push_back(real[kfs[i]]);
+					poses.push_back(poseOf(route[kfs[i]].pose));
+					place.positions.emplace_back(poses.back().x(), poses.back().y(),
+					                             poses.back().z());
+				}
+				keep(localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 1)));
+				places.push_back(std::move(place));
+				++kittiPlaces;
+			}
+		}
+		else
+			for (double m = 0; m <= length; m += a.every_m)
+			{
+				const auto i = scanAt(m);
+				Place place;
+				place.town = kittiTown;
+				const auto pose = poseOf(route[i].pose);
+				place.positions.emplace_back(pose.x(), pose.y(), pose.z());
+				keep(scanPlace(real[i], pose, *vocab, orb, static_cast<uint32_t>(i + 1)));
+				places.push_back(std::move(place));
+				++kittiPlaces;
+			}
+		// Queries spread over the street, alternately aside and turned and driven the other
+		// way, as in the towns; a local-map query's keyframes are rendered along its own
+		// drive, kfStep apart, and stop at the street's ends.
+		for (int q = 0; q < a.kittiQueries; q++)
+		{
+			const double m = length * (q + 0.5) / a.kittiQueries;
+			const bool opposite = q % 2 == 1;
+			const double side = (opposite ? -1 : 1) * a.offset_m;
+			const double yaw = (opposite ? 180.0 : a.yaw_deg) * M_PI / 180;
+			Eigen::Isometry3d aside = Eigen::Isometry3d::Identity();
+			aside.translate(Eigen::Vector3d(0, side, 0));
+			aside.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
+			const auto render = [&](std::size_t i)
+			{
+				Scan s;
+				s.index = 2000000 + i;
+				s.points = world.render(route[i].pose * aside, lidar);
+				return s;
+			};
+			const auto at = scanAt(m);
+			const auto pose = poseOf(route[at].pose * aside);
+			Described img;
+			if (a.queryLocalMaps)
+			{
+				std::vector<Scan> scans;
+				std::vector<mrpt::poses::CPose3D> poses;
+				std::vector<std::size_t> seen;
+				for (int i = 0; i < a.keyframes; i++)
+				{
+					const double mm = m + (opposite ? -1 : 1) * (i - a.keyframes / 2) * kfStep;
+					if (mm < 0 || mm > length)
+						continue;
+					const auto kk = scanAt(mm);
+					scans.push_back(render(kk));
+					poses.push_back(poseOf(route[kk].pose * aside));
+				}
+				scansSimulated += scans.size();
+				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(at + 7));
+			}
+			else
+			{
+				++scansSimulated;
+				img = scanPlace(render(at), pose, *vocab, orb, static_cast<uint32_t>(at + 7));
+			}
+			queries.push_back({kittiTown, Eigen::Vector3d(pose.x(), pose.y(), pose.z()),
+			                   std::move(img), opposite});
+		}
+	}
 	const double tBuild =
 	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -351,6 +490,20 @@ int run(const Args& a)
 	// a farther place that still overlaps and registers right is right) are the bound that
 	// matters; a true place registered off is a rough fit, not a wrong place.
 	std::size_t wrongInliersMax = 0, wrongPlaceInliersMax = 0, verifiedRight = 0;
+	// Wrong places that RANSAC fitted with at least --min-inliers (accepted or not).
+	struct WrongFit
+	{
+		std::size_t query, rank, inliers;
+		int town;
+		double distance_m, error_m, error_deg;
+	};
+	std::vector<WrongFit> wrongPlaceFits;
+	// --kitti: the street's queries on their own (they are also in the totals).
+	struct
+	{
+		std::size_t with = 0, at1 = 0, at5 = 0, accRight = 0, accWrong = 0;
+		std::vector<double> err_m, err_deg;
+	} street;
 	for (std::size_t qi = 0; qi < queries.size(); qi++)
 	{
 		const auto& q = queries[qi];
@@ -391,7 +544,12 @@ int run(const Args& a)
 				if (!right)
 					wrongInliersMax = std::max(wrongInliersMax, n);
 				if (!right && !isTrue(res[r].entry))
+				{
 					wrongPlaceInliersMax = std::max(wrongPlaceInliersMax, n);
+					if (v.fit.ok)
+						wrongPlaceFits.push_back(
+						    {qi, r, n, places[i].town, places[i].distanceTo(q.position), em, ed});
+				}
 				verifiedRight += right;
 				counts.push_back(n);
 				if (v.fit.ok && (!acc || n > acc->inliers))
@@ -415,6 +573,14 @@ int run(const Args& a)
 					if (r != acc->rank)
 						acc->secondInliers = std::max(acc->secondInliers, counts[r]);
 				accepted.push_back(*acc);
+				if (q.town == kittiTown)
+				{
+					street.accRight += acc->right && hasTruth;
+					street.accWrong += !acc->right;
+					if (acc->right)
+						street.err_m.push_back(acc->error_m),
+						    street.err_deg.push_back(acc->error_deg);
+				}
 			}
 		}
 		if (q.town < 0)
@@ -426,12 +592,16 @@ int run(const Args& a)
 			continue;
 		withTruth++;
 		opp += q.opposite;
+		const bool onStreet = q.town == kittiTown;
+		street.with += onStreet;
 		for (std::size_t r = 0; r < res.size() && r < 5; r++)
 			if (isTrue(res[r].entry))
 			{
 				at1 += r == 0;
 				at5++;
 				oppAt5 += q.opposite;
+				street.at1 += onStreet && r == 0;
+				street.at5 += onStreet;
 				break;
 			}
 	}
@@ -563,6 +733,22 @@ int run(const Args& a)
 		j["query_ms_median"] = median;
 		j["query_ms_max"] = worst;
 		j["build_s"] = tBuild;
+		if (!a.kitti.empty())
+		{
+			auto& k = j["kitti_street"];
+			k["places"] = kittiPlaces;
+			k["queries"] = street.with;
+			k["recall_at_1"] = street.with ? static_cast<double>(street.at1) / street.with : 0.0;
+			k["recall_at_5"] = street.with ? static_cast<double>(street.at5) / street.with : 0.0;
+			if (a.verify)
+			{
+				k["verified_recall"] =
+				    street.with ? static_cast<double>(street.accRight) / street.with : 0.0;
+				k["accepted_wrong"] = street.accWrong;
+				k["right_error_m_median"] = medianOf(street.err_m);
+				k["right_error_deg_median"] = medianOf(street.err_deg);
+			}
+		}
 		if (a.verify)
 		{
 			auto& v = j["verification"];
@@ -622,12 +808,38 @@ int run(const Args& a)
 		    accepted.size(), accRight, a.poseTruth_m, a.poseTruth_deg, medianOf(rightErr_m),
 		    medianOf(rightErr_deg), vRecall, vPrecision, wrongInliersMax, wrongPlaceInliersMax,
 		    rightInliersMin, inlierBound, recallAtPrecision1Inliers);
+	if (!a.kitti.empty())
+	{
+		std::printf("KITTI street (%s): %zu places, %zu queries: recall@1 %.3f, recall@5 %.3f",
+		            a.kitti.c_str(), kittiPlaces, street.with,
+		            street.with ? static_cast<double>(street.at1) / street.with : 0.0,
+		            street.with ? static_cast<double>(street.at5) / street.with : 0.0);
+		if (a.verify)
+			std::printf("; verified recall %.3f, %zu accepted wrong; median error %.3f m, %.2f deg",
+			            street.with ? static_cast<double>(street.accRight) / street.with : 0.0,
+			            street.accWrong, medianOf(street.err_m), medianOf(street.err_deg));
+		std::printf("\n");
+	}
+	for (const auto& w : wrongPlaceFits)
+		std::printf(
+		    "  wrong place fitted: query %zu (%s), candidate %zu: %zu inliers; the place is %s, "
+		    "%.1f m from the query; registration off by %.2f m, %.1f deg\n",
+		    w.query,
+		    queries[w.query].town < 0            ? "other town"
+		    : queries[w.query].town == kittiTown ? "KITTI street"
+		                                         : "own town",
+		    w.rank + 1, w.inliers,
+		    w.town == queries[w.query].town ? "of the query's town" : "of another town",
+		    w.town == queries[w.query].town ? w.distance_m : 0.0, w.error_m, w.error_deg);
 	for (const auto& acc : accepted)
 		if (!acc.right)
 			std::printf(
 			    "  wrong: query %zu (%s, %s), candidate %zu: %zu inliers of %zu matches, the "
 			    "next candidate %zu; %s, registration off by %.2f m, %.1f deg\n",
-			    acc.query, queries[acc.query].town < 0 ? "other town" : "own town",
+			    acc.query,
+			    queries[acc.query].town < 0            ? "other town"
+			    : queries[acc.query].town == kittiTown ? "KITTI street"
+			                                           : "own town",
 			    queries[acc.query].opposite ? "driven the other way" : "aside and turned",
 			    acc.rank + 1, acc.inliers, acc.matches, acc.secondInliers,
 			    acc.wrongPlace ? "a wrong place" : "a true place", acc.error_m, acc.error_deg);
@@ -687,6 +899,17 @@ int main(int argc, char** argv)
 	app.add_option("--other-towns", args.otherTowns,
 	               "also --queries queries from each of N towns not in the database (0)")
 	    ->check(CLI::Range(0, 100000).description(""))
+	    ->type_name("N");
+	auto* kitti =
+	    app.add_option("--kitti", args.kitti,
+	                   "also the real street of a KITTI folder (velodyne/, calib.txt, "
+	                   "poses_semantickitti.txt): places of its real scans, --kitti-queries "
+	                   "queries rendered from them at other poses")
+	        ->check(CLI::ExistingDirectory.description(""))
+	        ->type_name("DIR");
+	app.add_option("--kitti-queries", args.kittiQueries, "queries on the KITTI street (20)")
+	    ->needs(kitti)
+	    ->check(CLI::Range(1, 100000).description(""))
 	    ->type_name("N");
 	app.add_flag("--canonical", gCanonical,
 	             "rasterize each scan turned so that its dominant edges run along the image axes");
