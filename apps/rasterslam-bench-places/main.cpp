@@ -77,6 +77,8 @@ struct Described
 	double selfScore = 0;
 	cv::Mat desc;
 	std::vector<Eigen::Vector3f> pts;
+	/** --direct-index: each feature's vocabulary node (a DBoW2 direct index). */
+	std::vector<uint32_t> groups;
 	mrpt::poses::CPose3D frame;  //!< of the image, in the simulated world
 };
 
@@ -96,6 +98,7 @@ struct Place
 bool gCanonical = false;
 
 bool gVerify = false;
+int gDirectLevels = 0;  //!< --direct-index
 
 /** The words of an image whose pixels index `pts`; with --verify also the features that have
  *  a point behind them (the loop detector's keyframes keep the same). */
@@ -122,6 +125,18 @@ Described describe(const RasterFrame& f, const std::vector<PointXYZI>& pts,
 			const auto& q = pts[static_cast<std::size_t>(idx)];
 			out.pts.emplace_back(q.x, q.y, q.z);
 			out.desc.push_back(desc.row(static_cast<int>(i)));
+		}
+		if (gDirectLevels > 0 && !out.desc.empty())
+		{
+			// Stored with the image, as a database keeps its direct index.
+			bow::BowVector unused;
+			bow::FeatureVector fv;
+			vocab.transform(bow::toDescriptors(out.desc.ptr<uint8_t>(), out.desc.rows), unused, &fv,
+			                gDirectLevels);
+			out.groups.assign(static_cast<std::size_t>(out.desc.rows), 0);
+			for (const auto& [node, rows] : fv)
+				for (const auto r : rows)
+					out.groups[r] = node;
 		}
 	}
 	return out;
@@ -185,7 +200,9 @@ Verification verifyPair(const Described& q, const Described& p, int minInliers, 
 	features::MatchParams mp;
 	mp.maxDistance = 64;
 	mp.ratio = 0.9f;
-	const auto matches = features::matchMutual(q.desc, p.desc, mp);
+	const auto matches = !q.groups.empty() && !p.groups.empty()
+	                         ? features::matchMutualGrouped(q.desc, p.desc, mp, q.groups, p.groups)
+	                         : features::matchMutual(q.desc, p.desc, mp);
 	std::vector<Eigen::Vector3f> a, b;
 	for (const auto& m : matches)
 	{
@@ -353,20 +370,31 @@ int run(const Args& a)
 			                         " poses for " + std::to_string(bins.size()) + " scans in " +
 			                         D + "/velodyne");
 		const std::size_t n = bins.size();
-		std::vector<Scan> real(n);
+		// The scans are read twice (merged, then those the places use) rather than all kept:
+		// 101 HDL-64 scans would hold 190 MB.
+		const auto readScan = [&](std::size_t i)
+		{
+			Scan s;
+			s.index = i;
+			s.points = io::loadKittiBin(bins[i]);
+			return s;
+		};
 		sim::CloudWorld world;
 		std::vector<double> along(n, 0);  // metres travelled to each scan
+		std::vector<PointXYZI> first;
 		for (std::size_t i = 0; i < n; i++)
 		{
-			real[i].index = i;
-			real[i].points = io::loadKittiBin(bins[i]);
-			world.add(real[i].points, route[i].pose);
-			if (i > 0)
+			auto pts = io::loadKittiBin(bins[i]);
+			world.add(pts, route[i].pose);
+			if (i == 0)
+				first = std::move(pts);
+			else
 				along[i] = along[i - 1] +
 				           (route[i].pose.translation() - route[i - 1].pose.translation()).norm();
 		}
 		const auto lidar =
-		    sim::LidarModel::fromRingOrderedScan("kitti-hdl64", real[0].points, 2083, 2.5, 120);
+		    sim::LidarModel::fromRingOrderedScan("kitti-hdl64", first, 2083, 2.5, 120);
+		first = {};
 		const auto poseOf = [](const Eigen::Isometry3d& T)
 		{ return mrpt::poses::CPose3D(mrpt::math::CMatrixDouble44(T.matrix())); };
 		// The scan at (or just past) `m` metres along the route.
@@ -394,7 +422,7 @@ int run(const Args& a)
 				std::vector<mrpt::poses::CPose3D> poses;
 				for (std::size_t i = k; i < kfs.size() && i < k + per + 1; i++)
 				{
-					scans.push_back(real[kfs[i]]);
+					scans.push_back(readScan(kfs[i]));
 					poses.push_back(poseOf(route[kfs[i]].pose));
 					place.positions.emplace_back(poses.back().x(), poses.back().y(),
 					                             poses.back().z());
@@ -412,7 +440,7 @@ int run(const Args& a)
 				place.town = kittiTown;
 				const auto pose = poseOf(route[i].pose);
 				place.positions.emplace_back(pose.x(), pose.y(), pose.z());
-				keep(scanPlace(real[i], pose, *vocab, orb, static_cast<uint32_t>(i + 1)));
+				keep(scanPlace(readScan(i), pose, *vocab, orb, static_cast<uint32_t>(i + 1)));
 				places.push_back(std::move(place));
 				++kittiPlaces;
 			}
@@ -754,6 +782,7 @@ int run(const Args& a)
 			auto& v = j["verification"];
 			v["candidates_a_query"] = a.candidates;
 			v["min_inliers"] = a.minInliers;
+			v["direct_index_levels_up"] = gDirectLevels;
 			v["verified"] = verifyMs.size();
 			v["right_registrations"] = verifiedRight;
 			v["ms_median"] = vMedian;
@@ -797,17 +826,22 @@ int run(const Args& a)
 	std::printf("recall at precision 1: %.3f\n", recallAtPrecision1);
 	if (a.verify)
 		std::printf(
-		    "verified %zu candidates (the first %d of each query, image against image): %.2f ms "
-		    "median, %.2f ms p95, %.2f ms max a candidate; %zu right registrations\n"
+		    "verified %zu candidates (the first %d of each query, image against image%s): %.2f "
+		    "ms median, %.2f ms p95, %.2f ms max a candidate; %zu right registrations\n"
 		    "accepted (at least %d inliers, the most): %zu, right %zu (within %.1f m and %.1f "
 		    "deg; median error %.3f m, %.2f deg): recall %.3f, precision %.3f\n"
 		    "inliers: wrong registrations up to %zu (of wrong places %zu), accepted right ones "
 		    "from %zu; with the "
 		    "bound at %zu, precision 1 at recall %.3f\n",
-		    verifyMs.size(), a.candidates, vMedian, vP95, vMax, verifiedRight, a.minInliers,
-		    accepted.size(), accRight, a.poseTruth_m, a.poseTruth_deg, medianOf(rightErr_m),
-		    medianOf(rightErr_deg), vRecall, vPrecision, wrongInliersMax, wrongPlaceInliersMax,
-		    rightInliersMin, inlierBound, recallAtPrecision1Inliers);
+		    verifyMs.size(), a.candidates,
+		    gDirectLevels > 0 ? (", features matched under the same vocabulary node " +
+		                         std::to_string(gDirectLevels) + " levels up")
+		                            .c_str()
+		                      : "",
+		    vMedian, vP95, vMax, verifiedRight, a.minInliers, accepted.size(), accRight,
+		    a.poseTruth_m, a.poseTruth_deg, medianOf(rightErr_m), medianOf(rightErr_deg), vRecall,
+		    vPrecision, wrongInliersMax, wrongPlaceInliersMax, rightInliersMin, inlierBound,
+		    recallAtPrecision1Inliers);
 	if (!a.kitti.empty())
 	{
 		std::printf("KITTI street (%s): %zu places, %zu queries: recall@1 %.3f, recall@5 %.3f",
@@ -926,6 +960,13 @@ int main(int argc, char** argv)
 	    ->needs(verifyFlag)
 	    ->check(CLI::Range(3, 100000).description(""))
 	    ->type_name("N");
+	app.add_option("--direct-index", gDirectLevels,
+	               "match only features under the same vocabulary node this many levels above "
+	               "the leaves (a DBoW2 direct index, the loop detector's direct_index_levels_up; "
+	               "0: all pairs, the default)")
+	    ->needs(verifyFlag)
+	    ->check(CLI::Range(0, 8).description(""))
+	    ->type_name("L");
 	app.add_option("--pose-truth", args.poseTruth_m,
 	               "a registration within this of the truth is right (1 m)")
 	    ->needs(verifyFlag)
