@@ -88,7 +88,8 @@ TEST(PlaceRanking, LocalMapQueriesFindLocalMaps)
 	ASSERT_TRUE(j.contains("verification")) << j.dump();
 	const auto& v = j.at("verification");
 	ASSERT_EQ(v["verified"].get<int>(), 5 * 40);
-	EXPECT_EQ(v["precision"].get<double>(), 1.0) << "a wrong place was accepted";
+	EXPECT_EQ(v["precision"].get<double>(), 1.0)
+	    << "a wrong place, or a true one registered off, was accepted";
 	EXPECT_GE(v["recall"].get<double>(), 0.85);
 	EXPECT_LT(v["wrong_inliers_max"].get<int>(), 25);
 	EXPECT_LT(v["right_error_m_median"].get<double>(), 0.2);
@@ -101,8 +102,12 @@ TEST(PlaceRanking, KittiStreetAmongSimulatedDistractors)
 	// real scans at their poses, its 20 queries are local maps rendered from those scans
 	// 3 m aside and turned by 20 degrees, or driven the other way. Among the local maps of
 	// three simulated towns (5 of 77 places are the street's) a random ranking finds the
-	// street's true place among the first 5 about one time in ten. Measured: recall@5 1.0,
-	// recall@1 0.9, all 20 verified right (0.20 m, 0.18 deg in the median), none wrong.
+	// street's true place among the first 5 about one time in ten. The street's places are
+	// real scans, the towns' simulated: a ranking that only told real from simulated would put
+	// the 5 first and reach recall@5 1.0 but recall@1 about 0.4 (a query has about 2 true
+	// places of the 5), so recall@1 is the bound that says the street is ordered. Measured:
+	// recall@5 1.0, recall@1 0.9, all 20 verified right (0.20 m, 0.18 deg in the median),
+	// none wrong.
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto j = bench(
 	    "--local-maps --query-local-maps --verify --kitti " + test::sharedData("kitti00-0000-0100"),
@@ -112,12 +117,13 @@ TEST(PlaceRanking, KittiStreetAmongSimulatedDistractors)
 	ASSERT_EQ(k["places"].get<int>(), 5);
 	ASSERT_EQ(k["queries"].get<int>(), 20);
 	EXPECT_GE(k["recall_at_5"].get<double>(), 0.9);
-	EXPECT_GE(k["recall_at_1"].get<double>(), 0.8);
+	EXPECT_GE(k["recall_at_1"].get<double>(), 0.8) << "the street's places are not ordered";
 	EXPECT_GE(k["verified_recall"].get<double>(), 0.9);
 	EXPECT_EQ(k["accepted_wrong"].get<int>(), 0);
 	EXPECT_LT(k["right_error_m_median"].get<double>(), 0.3);
 	EXPECT_LT(k["right_error_deg_median"].get<double>(), 1.0);
-	EXPECT_EQ(j["verification"]["precision"].get<double>(), 1.0) << "a wrong place was accepted";
+	EXPECT_EQ(j["verification"]["precision"].get<double>(), 1.0)
+	    << "a wrong place, or a true one registered off, was accepted";
 }
 
 TEST(PlaceRanking, KittiStreetWithDirectIndex)
@@ -133,11 +139,15 @@ TEST(PlaceRanking, KittiStreetWithDirectIndex)
 	                     2, 2);
 	ASSERT_TRUE(j.contains("kitti_street")) << j.dump();
 	ASSERT_EQ(j["verification"]["direct_index_levels_up"].get<int>(), 3);
+	// The index splits each image's features into many groups (the vocabulary's first level
+	// has 10 nodes): with one group it would compare every pair, as without it.
+	EXPECT_GE(j["verification"]["direct_index_groups_median"].get<double>(), 5);
 	const auto& k = j.at("kitti_street");
 	ASSERT_EQ(k["queries"].get<int>(), 20);
 	EXPECT_GE(k["verified_recall"].get<double>(), 0.9);
 	EXPECT_EQ(k["accepted_wrong"].get<int>(), 0);
 	EXPECT_LT(k["right_error_m_median"].get<double>(), 0.3);
 	EXPECT_LT(k["right_error_deg_median"].get<double>(), 1.0);
-	EXPECT_EQ(j["verification"]["precision"].get<double>(), 1.0) << "a wrong place was accepted";
+	EXPECT_EQ(j["verification"]["precision"].get<double>(), 1.0)
+	    << "a wrong place, or a true one registered off, was accepted";
 }

@@ -9,6 +9,7 @@
 // --verify, the first candidates of each query are verified image against image (ORB
 // matches of the two images' keypoints, the 3D points behind them fitted by RANSAC), timed,
 // and a query's accepted place is judged by its registration against the simulator's truth.
+#include <mrpt/core/format.h>
 #include <mrpt/maps/registerAllClasses.h>
 #include <mrpt/obs/registerAllClasses.h>
 #include <rasterslam/bow/vocabulary.h>
@@ -79,6 +80,7 @@ struct Described
 	std::vector<Eigen::Vector3f> pts;
 	/** --direct-index: each feature's vocabulary node (a DBoW2 direct index). */
 	std::vector<uint32_t> groups;
+	std::size_t nGroups = 0;     //!< distinct nodes among `groups`
 	mrpt::poses::CPose3D frame;  //!< of the image, in the simulated world
 };
 
@@ -134,6 +136,7 @@ Described describe(const RasterFrame& f, const std::vector<PointXYZI>& pts,
 			vocab.transform(bow::toDescriptors(out.desc.ptr<uint8_t>(), out.desc.rows), unused, &fv,
 			                gDirectLevels);
 			out.groups.assign(static_cast<std::size_t>(out.desc.rows), 0);
+			out.nGroups = fv.size();
 			for (const auto& [node, rows] : fv)
 				for (const auto r : rows)
 					out.groups[r] = node;
@@ -360,8 +363,9 @@ int run(const Args& a)
 		const std::string D = a.kitti;
 		const auto bins = io::listKittiBins(D + "/velodyne");
 		const std::string posesFile = D + "/poses_semantickitti.txt";
-		const auto route = io::kittiCameraToVelodyne(io::loadTrajectory(posesFile),
-		                                             io::loadKittiCalibTr(D + "/calib.txt"));
+		const auto route =
+		    io::kittiCameraToVelodyne(io::loadTrajectory(posesFile, io::TrajectoryFormat::Kitti),
+		                              io::loadKittiCalibTr(D + "/calib.txt"));
 		if (bins.size() < 2)
 			throw std::runtime_error(D + "/velodyne: " + std::to_string(bins.size()) +
 			                         " scans; a street needs at least 2");
@@ -470,7 +474,6 @@ int run(const Args& a)
 			{
 				std::vector<Scan> scans;
 				std::vector<mrpt::poses::CPose3D> poses;
-				std::vector<std::size_t> seen;
 				for (int i = 0; i < a.keyframes; i++)
 				{
 					const double mm = m + (opposite ? -1 : 1) * (i - a.keyframes / 2) * kfStep;
@@ -783,6 +786,16 @@ int run(const Args& a)
 			v["candidates_a_query"] = a.candidates;
 			v["min_inliers"] = a.minInliers;
 			v["direct_index_levels_up"] = gDirectLevels;
+			if (gDirectLevels > 0)
+			{
+				// How finely the direct index splits a place's features: 1 would compare every
+				// pair, as without it.
+				std::vector<double> groups;
+				for (const auto& d : placeImages)
+					if (!d.groups.empty())
+						groups.push_back(static_cast<double>(d.nGroups));
+				v["direct_index_groups_median"] = medianOf(groups);
+			}
 			v["verified"] = verifyMs.size();
 			v["right_registrations"] = verifiedRight;
 			v["ms_median"] = vMedian;
@@ -856,15 +869,19 @@ int run(const Args& a)
 	}
 	for (const auto& w : wrongPlaceFits)
 		std::printf(
-		    "  wrong place fitted: query %zu (%s), candidate %zu: %zu inliers; the place is %s, "
-		    "%.1f m from the query; registration off by %.2f m, %.1f deg\n",
+		    "  wrong place fitted: query %zu (%s), candidate %zu: %zu inliers; the place is %s; "
+		    "registration off by %.2f m, %.1f deg\n",
 		    w.query,
 		    queries[w.query].town < 0            ? "other town"
 		    : queries[w.query].town == kittiTown ? "KITTI street"
 		                                         : "own town",
 		    w.rank + 1, w.inliers,
-		    w.town == queries[w.query].town ? "of the query's town" : "of another town",
-		    w.town == queries[w.query].town ? w.distance_m : 0.0, w.error_m, w.error_deg);
+		    (w.town == queries[w.query].town
+		         ? "of the query's town, " + mrpt::format("%.1f", w.distance_m) +
+		               " m from the query"
+		         : std::string("of another town"))
+		        .c_str(),
+		    w.error_m, w.error_deg);
 	for (const auto& acc : accepted)
 		if (!acc.right)
 			std::printf(
