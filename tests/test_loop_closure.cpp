@@ -65,10 +65,13 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	const std::string det = detectorScores(dir / "slam");
 	ASSERT_NE(det, "{}");
 	// The README's figures (scripts/benchmark-loops.sh, town-vlp16, bow): precision 1, recall
-	// 0.571 (4 of 7 revisiting keyframes). One revisit fewer (3 of 7) fails.
+	// 1 (7 of 7 revisiting keyframes). One revisit fewer (6 of 7) fails. The first three
+	// revisits (32.9-34.7 s) meet the first local map, whose first keyframes are 30 s old and
+	// its last ones not yet: they are found only because recency is judged per keyframe (4 of
+	// 7, recall 0.571, when the local map's newest keyframe decided).
 	EXPECT_EQ(jsonNumber(det, "fp"), 0) << det;
-	EXPECT_GE(jsonNumber(det, "tp"), 4) << det;
-	EXPECT_GE(jsonNumber(det, "recall"), 0.57) << det;
+	EXPECT_GE(jsonNumber(det, "tp"), 7) << det;
+	EXPECT_GE(jsonNumber(det, "recall"), 0.99) << det;
 
 	// Each accepted loop's transform agrees with the ground truth, and none is found before
 	// the route could have revisited anything.
@@ -100,6 +103,9 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 			continue;
 		++accepted;
 		EXPECT_GT(qs - gt.front().stamp, 30.0) << line;  // the first 30 s revisit nothing
+		// The loop links a keyframe older than exclude_recent_s (30 s), also where its local
+		// map has younger keyframes.
+		EXPECT_LE(cs, qs - 30.0) << line;
 		const Eigen::Isometry3d truth = gtAt(cs).inverse() * gtAt(qs);
 		EXPECT_NEAR((truth.translation() - Eigen::Vector3d(x, y, z)).norm(), 0, 0.5) << line;
 		const Eigen::Quaterniond qe(qw, qx, qy, qz), qt(truth.linear());
@@ -107,8 +113,8 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 	}
 	EXPECT_GE(accepted, 2);
 
-	// Loop closure pays; the README states 0.575 m odometry only, 0.200 m optimized (0.35 of
-	// it): guarded with a margin.
+	// Loop closure pays; the README states 0.590 m odometry only, 0.160 m optimized (0.27 of
+	// it; goal a third): guarded with a margin.
 	auto ate = [&](const fs::path& out)
 	{
 		const auto r = test::runCommand(test::bin("rasterslam-eval") + " traj --gt " +
@@ -118,7 +124,7 @@ TEST(LoopClosure, SimulatedRevisitIsFoundAndCorrectsTheTrajectory)
 		return jsonNumber(r.output, "ate_rmse_m");
 	};
 	const double odo = ate(dir / "odo"), slam = ate(dir / "slam");
-	EXPECT_LT(slam, 0.40 * odo) << "odometry " << odo << " m, with loops " << slam << " m";
+	EXPECT_LT(slam, 0.33 * odo) << "odometry " << odo << " m, with loops " << slam << " m";
 
 	// The same input gives the same loops and the same trajectory (batch mode is
 	// deterministic), on a drive that has loops.
@@ -183,9 +189,9 @@ TEST(LoopClosure, ImageQueriesOfTheLocalMapBeingBuilt)
 	}
 	const std::string det = detectorScores(dir / "image");
 	ASSERT_NE(det, "{}");
-	// As the keyframe queries (README: precision 1, 4 of 7 revisiting keyframes).
+	// As the keyframe queries (README: precision 1, 7 of 7 revisiting keyframes).
 	EXPECT_EQ(jsonNumber(det, "fp"), 0) << det;
-	EXPECT_GE(jsonNumber(det, "tp"), 4) << det;
+	EXPECT_GE(jsonNumber(det, "tp"), 7) << det;
 	// The words are the image's: the same verified pairs score otherwise.
 	const auto a = scores("keyframe"), b = scores("image");
 	int common = 0, differ = 0;

@@ -199,22 +199,44 @@ std::vector<uint32_t> BowLoopDetector::groupsOf(const cv::Mat& desc) const
 	return g;
 }
 
+uint32_t BowLoopDetector::loopKeyframes(const LocalMap& lm, const Map& map,
+                                        const KeyframeInfo& kf) const
+{
+	// An earlier session's clock is another clock (its stamps may overlap this one's), so its
+	// places always count.
+	if (lm.session + 1 < map.sessions)
+		return kAllKeyframes;
+	const double before = kf.stamp - excludeRecent_s_;
+	if (lm.updatedStamp <= before)
+		return kAllKeyframes;
+	uint32_t mask = 0;
+	for (std::size_t k = 0; k < lm.keyframes.size() && k < 32; k++)
+	{
+		const auto it = map.keyframes.find(lm.keyframes[k]);
+		if (it != map.keyframes.end() && it->second->stamp <= before)
+			mask |= 1u << k;
+	}
+	return mask;
+}
+
 features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm, uint32_t seed,
-                                              int onlyKeyframe, int minInliers) const
+                                              uint32_t keyframes, int minInliers) const
 {
 	features::RigidResult fit;
 	const std::size_t n = lm.points();
-	if (n == 0 || q.desc.rows == 0)
+	if (n == 0 || q.desc.rows == 0 || keyframes == 0)
 		return fit;
+	const std::size_t nk = std::min<std::size_t>(lm.keyframes.size(), 32);
+	const uint32_t every = nk >= 32 ? kAllKeyframes : (1u << nk) - 1;
 	std::vector<int> rows;  // local-map point of each candidate row
 	cv::Mat cand;
-	if (onlyKeyframe < 0)
+	if ((keyframes & every) == every)
 		cand = descriptorMat(lm.descriptors);
 	else
 	{
 		cand.create(0, 32, CV_8U);
 		for (std::size_t i = 0; i < n; i++)
-			if (lm.observers[i] & (1u << onlyKeyframe))
+			if (lm.observers[i] & keyframes)
 			{
 				rows.push_back(static_cast<int>(i));
 				cand.push_back(
@@ -243,13 +265,16 @@ features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm
 
 uint64_t BowLoopDetector::nearestKeyframe(const LocalMap& lm,
                                           const Eigen::Isometry3d& T_anchor_pose,
-                                          const PoseView& poses)
+                                          const PoseView& poses, uint32_t keyframes)
 {
 	const auto anchor = poses.at(lm.anchor());
 	uint64_t best = lm.anchor();
 	double bestD = std::numeric_limits<double>::max();
-	for (const auto k : lm.keyframes)
+	for (std::size_t i = 0; i < lm.keyframes.size(); i++)
 	{
+		if (i < 32 && !(keyframes & (1u << i)))
+			continue;
+		const auto k = lm.keyframes[i];
 		const auto T_anchor_kf = poses.at(k) - anchor;
 		const double d = (Eigen::Vector3d(T_anchor_kf.x(), T_anchor_kf.y(), T_anchor_kf.z()) -
 		                  T_anchor_pose.translation())
@@ -266,7 +291,8 @@ uint64_t BowLoopDetector::nearestKeyframe(const LocalMap& lm,
 void BowLoopDetector::consider(LoopDecision d, const features::RigidResult& fit, const LocalMap& lm,
                                const Query& q, const KeyframeInfo& kf, const Map& map,
                                const PoseView& poses, bool acceptable,
-                               std::optional<LoopConstraint>& best, std::size_t& bestDecision)
+                               std::optional<LoopConstraint>& best, std::size_t& bestDecision,
+                               uint32_t keyframes)
 {
 	d.candidateMap = lm.id;
 	d.inliers = fit.inliers.size();
@@ -277,7 +303,7 @@ void BowLoopDetector::consider(LoopDecision d, const features::RigidResult& fit,
 	{
 		// The fit is in the anchor's frame; loops.txt and the edge use the local map's keyframe
 		// nearest to the query.
-		kfId = nearestKeyframe(lm, fit.T, poses);
+		kfId = nearestKeyframe(lm, fit.T, poses, keyframes);
 		const auto T_anchor_kf = poses.at(kfId) - poses.at(lm.anchor());
 		T_kf_query = (mrpt::poses::CPose3D() - T_anchor_kf) + toPose(fit.T);
 		d.T_candidate_query = T_kf_query;
@@ -385,10 +411,10 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			const auto it = map.localMaps.find(entryMap_.at(r.entry));
 			if (it == map.localMaps.end())
 				continue;  // not in this map (cannot happen unless removed)
-			// Recent places of this session are no loops; an earlier session's clock is another
-			// clock (its stamps may overlap this one's), so its places always count.
-			const bool sameSession = it->second->session + 1 >= map.sessions;
-			if (sameSession && it->second->updatedStamp > kf.stamp - excludeRecent_s_)
+			// Recent places of this session are no loops: only the keyframes older than
+			// exclude_recent_s are matched (and linked to).
+			const uint32_t keyframes = loopKeyframes(*it->second, map, kf);
+			if (keyframes == 0)
 				continue;
 			if (examined++ >= maxCandidates_)
 				break;
@@ -400,9 +426,10 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			LoopDecision d;
 			d.queryStamp = kf.stamp;
 			d.score = norm > 1e-6 ? r.score / norm : 0;
-			const auto fit = verify(q, lm, static_cast<uint32_t>(kf.node * 31 + lm.id));
+			const auto fit = verify(q, lm, static_cast<uint32_t>(kf.node * 31 + lm.id), keyframes);
 			d.reason = !fit.ok ? "inliers" : (d.score < minScore_ ? "score" : "ok");
-			consider(d, fit, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision);
+			consider(d, fit, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision,
+			         keyframes);
 		}
 		if (imageQuery)
 			prevBow_.reset();  // the words of an image, not of a keyframe

@@ -108,20 +108,31 @@ class BowLoopDetector : public LoopDetector
 	 *  (as the local-map images are with map_manager.canonical_yaw). */
 	bow::BowVector canonicalWords(const Scan& scan, const RasterFrame& raster) const;
 	bool canonicalYaw_ = false;
-	/** Matches the query against the local map's points (only those seen by keyframe
-	 *  `onlyKeyframe` when >= 0) and fits the rigid transform with RANSAC. */
+	/** Keyframes of a local map as a mask: bit k stands for lm.keyframes[k] (as in
+	 *  LocalMap::observers); all bits set: every keyframe. */
+	static constexpr uint32_t kAllKeyframes = ~0u;
+	/** The keyframes of `lm` that may close a loop with keyframe `kf`: all of them for an
+	 *  earlier session's map; in this session's, those older than exclude_recent_s. A local
+	 *  map still being added to when the vehicle left it (its first keyframes old, its last
+	 *  recent) is a candidate through its old keyframes, not only once its newest one is
+	 *  old: a place is as old as the keyframes that saw it. */
+	uint32_t loopKeyframes(const LocalMap& lm, const Map& map, const KeyframeInfo& kf) const;
+	/** Matches the query against the local map's points (only those seen by the keyframes
+	 *  in `keyframes`) and fits the rigid transform with RANSAC. */
 	/** The fit's T maps the query frame into the local map's anchor frame; its inliers are
 	 *  query feature indices. */
 	features::RigidResult verify(const Query& q, const LocalMap& lm, uint32_t seed,
-	                             int onlyKeyframe = -1, int minInliers = -1) const;
-	/** The keyframe of `lm` nearest to a pose given in the anchor's frame: the one a
-	 *  constraint to that pose is shortest from. */
+	                             uint32_t keyframes = kAllKeyframes, int minInliers = -1) const;
+	/** The keyframe of `lm` (among those in `keyframes`) nearest to a pose given in the
+	 *  anchor's frame: the one a constraint to that pose is shortest from. */
 	static uint64_t nearestKeyframe(const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose,
-	                                const PoseView& poses);
-	/** Turns a verification into a decision (logged) and keeps the best acceptable one. */
+	                                const PoseView& poses, uint32_t keyframes = kAllKeyframes);
+	/** Turns a verification into a decision (logged) and keeps the best acceptable one; the
+	 *  constraint's keyframe is one of `keyframes`. */
 	void consider(LoopDecision d, const features::RigidResult& fit, const LocalMap& lm,
 	              const Query& q, const KeyframeInfo& kf, const Map& map, const PoseView& poses,
-	              bool acceptable, std::optional<LoopConstraint>& best, std::size_t& bestDecision);
+	              bool acceptable, std::optional<LoopConstraint>& best, std::size_t& bestDecision,
+	              uint32_t keyframes = kAllKeyframes);
 	/** The paper's two baselines: candidates are the keyframes, or the local maps, near the
 	 *  current pose estimate; each is verified by feature matching. */
 	void searchByDistance(const Query& q, const KeyframeInfo& kf, const Map& map,

@@ -133,7 +133,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			}
 			continue;  // the database is sorted by score: the rest scores lower still
 		}
-		const auto fit = verify(q, lm, static_cast<uint32_t>(seed + lm.id), -1, relocMinInliers_);
+		const auto fit =
+		    verify(q, lm, static_cast<uint32_t>(seed + lm.id), kAllKeyframes, relocMinInliers_);
 		if (fit.ok && fit.inliers.size() > res.inliers)
 		{
 			const uint64_t kf = nearestKeyframe(lm, fit.T, poses);

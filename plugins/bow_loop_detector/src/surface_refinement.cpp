@@ -62,7 +62,7 @@ void BowLoopDetector::refineLoop(LoopConstraint& c, LoopDecision& d, const Query
 	Eigen::Isometry3d T = toIsometry(T_anchor_from + c.T_from_to);
 	if (!refineOnSurface(surfaceOf(*kf.scan), *lm, T))
 		return;
-	c.from = nearestKeyframe(*lm, T, poses);
+	c.from = nearestKeyframe(*lm, T, poses, loopKeyframes(*lm, map, kf));
 	double tilt = 0;
 	if (const auto g = groundAligned(q, *lm, c.from, T, map, poses, &tilt))
 		T = *g;
