@@ -272,7 +272,7 @@ uint64_t BowLoopDetector::nearestKeyframe(const LocalMap& lm,
 	double bestD = std::numeric_limits<double>::max();
 	for (std::size_t i = 0; i < lm.keyframes.size(); i++)
 	{
-		if (i < 32 && !(keyframes & (1u << i)))
+		if (keyframes != kAllKeyframes && (i >= 32 || !(keyframes & (1u << i))))
 			continue;
 		const auto k = lm.keyframes[i];
 		const auto T_anchor_kf = poses.at(k) - anchor;

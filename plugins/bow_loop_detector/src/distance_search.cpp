@@ -47,7 +47,8 @@ void BowLoopDetector::searchByDistance(const Query& q, const KeyframeInfo& kf, c
 			Eigen::Vector3d c = Eigen::Vector3d::Zero();
 			int n = 0;
 			for (std::size_t k = 0; k < lm->keyframes.size(); k++)
-				if (const auto p = poses(lm->keyframes[k]); p && (k >= 32 || (old & (1u << k))))
+				if (const auto p = poses(lm->keyframes[k]);
+				    p && (old == kAllKeyframes || (k < 32 && (old & (1u << k)))))
 				{
 					c += Eigen::Vector3d(p->x(), p->y(), p->z());
 					++n;
