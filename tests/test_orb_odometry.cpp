@@ -4,6 +4,7 @@
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/plugin_loader.h>
 #include <rasterslam/eval/trajectory_metrics.h>
+#include <rasterslam/features/icp.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/trajectory_io.h>
 #include <rasterslam/sim/scenario.h>
@@ -14,6 +15,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <random>
 #include <string>
 
 #include "test_support.h"
@@ -698,9 +700,9 @@ TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)
 {
 	// rawlogs/indoor-handheld.yaml, first 200 scans (24 m, three rooms, turns of up to 13 deg
 	// a scan). Measured on all 450: gicp-indoor.yaml 0 lost, ATE 0.063 m; the paper's tracking
-	// (indoor.yaml) 6 lost, ATE 0.43 m: short of GICP (a README goal not met). This guards
-	// what the configs do: GICP tracks the walk, and the features lose at most a few scans
-	// and stay within half a metre (3 lost, ATE 0.24 m on these 200).
+	// (indoor.yaml, each estimate refined by ICP on the keyframe's points) 1 lost, ATE 0.13 m:
+	// short of GICP (a README goal not met). On these 200: GICP 0 lost, ATE 0.022 m; the
+	// features 1 lost, ATE 0.035 m (3 lost and 0.24 m without the refinement).
 	const auto sc = sim::loadScenario(test::sourcePath("rawlogs/indoor-handheld.yaml"));
 	const std::size_t n = 200;
 	const auto simu = sim::Simulator::fromScenario(sc);
@@ -728,8 +730,64 @@ TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)
 		}
 		else
 		{
-			EXPECT_LE(res.lost, 6u);
-			EXPECT_LT(ate, 0.5);  // 0.24 m measured on these 200 scans
+			EXPECT_LE(res.lost, 2u);
+			EXPECT_LT(ate, 0.08);  // 0.035 m measured on these 200 scans
 		}
 	}
+}
+
+TEST(Indoor, IcpConvergesWhereAMatchFlipsBackAndForth)
+{
+	// Nearest-neighbour matching can flip one correspondence back and forth at the end, and
+	// Gauss-Newton then swings between two poses a fraction of a millimetre apart for ever: on
+	// the handheld walk 31 of 401 refinements (0.2 m voxels, from the features' estimate) ran
+	// to their 30 iterations unconverged, and were thrown away (RTE 1.64 % -> 0.81 % once
+	// counted as converged). Here each scan of the walk's first 120 is registered on the one
+	// before, from the true motion disturbed by 2 cm and 0.5 deg (seeded), as the indoor
+	// refinement does (0.2 m voxels, rotation judged at the points' distance).
+	const auto sc = sim::loadScenario(test::sourcePath("rawlogs/indoor-handheld.yaml"));
+	const auto simu = sim::Simulator::fromScenario(sc);
+	features::IcpParams prm;
+	prm.voxel_m = 0.2;
+	prm.lever_m = 0;
+	auto cloud = [&](std::size_t k)
+	{
+		std::vector<Eigen::Vector3f> v;
+		for (const auto& p : simu.scan(k).points)
+			if (std::hypot(p.x, p.y) < 15.f)
+				v.emplace_back(p.x, p.y, p.z);
+		return v;
+	};
+	std::mt19937 rng(7);
+	std::normal_distribution<double> noise(0, 1);
+	std::size_t converged = 0, total = 0;
+	double worstDeg = 0, worstM = 0;
+	auto target = cloud(0);
+	for (std::size_t k = 1; k <= 120; k++)
+	{
+		const auto source = cloud(k);
+		const Eigen::Isometry3d truth =
+		    toEigen(simu.sensorPose(k - 1)).inverse() * toEigen(simu.sensorPose(k));
+		Eigen::Isometry3d start = truth;
+		start.translation() += 0.02 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+		start.linear() = start.linear() *
+		                 Eigen::AngleAxisd(0.5 * M_PI / 180 * noise(rng), Eigen::Vector3d::UnitZ())
+		                     .toRotationMatrix();
+		const auto r = features::icpPointToPlane(source, target, start, prm);
+		total++;
+		converged += r.converged;
+		if (r.converged)
+		{
+			worstDeg = std::max(worstDeg, angleDeg(r.T, truth));
+			worstM = std::max(worstM, (r.T.translation() - truth.translation()).norm());
+		}
+		target = source;
+	}
+	std::cout << converged << " of " << total << " converged; worst " << worstM << " m, "
+	          << worstDeg << " deg\n";
+	// Measured: 119 of 120 (114 when only a small step counted as converged), worst 2.4 cm and
+	// 0.55 deg (scan to scan in turns of up to 13 deg a scan).
+	EXPECT_GE(converged, 118u);
+	EXPECT_LT(worstM, 0.04);
+	EXPECT_LT(worstDeg, 0.8);
 }

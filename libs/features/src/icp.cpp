@@ -227,6 +227,7 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 	using Vec6 = Eigen::Matrix<double, 6, 1>;
 	uint32_t nn = 0;
 	float nd2 = 0;
+	Eigen::Isometry3d last = initial, beforeLast = initial;
 	for (res.iterations = 0; res.iterations < prm.maxIterations; res.iterations++)
 	{
 		Mat6 A = Mat6::Zero();
@@ -274,9 +275,18 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 		const Vec6 d = D.asDiagonal() * ds;
 		if (!d.allFinite())
 			return res;
+		beforeLast = last;
+		last = res.T;
 		res.T = expTwist(d) * res.T;
-		if (d.head<3>().norm() < prm.convergedTranslation_m &&
-		    d.tail<3>().norm() < prm.convergedRotation_rad)
+		// Converged: the step is below the bounds, or the pose is back where it was two steps
+		// ago. Nearest-neighbour matching can flip one correspondence back and forth at the
+		// end, and the pose then swings between two poses a fraction of a millimetre apart for
+		// ever (measured on the handheld walk: a 0.13 mm step, 8 % of the refinements).
+		const Eigen::Isometry3d back = beforeLast.inverse() * res.T;
+		if ((d.head<3>().norm() < prm.convergedTranslation_m &&
+		     d.tail<3>().norm() < prm.convergedRotation_rad) ||
+		    (res.iterations >= 2 && back.translation().norm() < prm.convergedTranslation_m &&
+		     Eigen::AngleAxisd(back.linear()).angle() < prm.convergedRotation_rad))
 		{
 			res.converged = true;
 			++res.iterations;
