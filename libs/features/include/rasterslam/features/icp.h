@@ -23,7 +23,7 @@ struct IcpParams
 	int normalNeighbours = 10;  //!< points the target's normals are fitted to
 	double minPlanarity = 0.7;  //!< 1 - 3 * smallest / sum of eigenvalues, else no normal
 	/** Converged when a step is below both, or when the pose is back within both of where it
-	 *  was two steps before (a correspondence flipping back and forth). */
+	 *  was two to four steps before (correspondences flipping back and forth). */
 	double convergedTranslation_m = 1e-4;
 	double convergedRotation_rad = 1e-5;
 	/** Rotation is weighed by its effect at this distance (a street scan's scale); 0: at the
