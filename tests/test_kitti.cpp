@@ -202,11 +202,21 @@ TEST(Kitti, GroundPatchesLowerTheRotationDrift)
 	const std::string corrected =
 	    std::regex_replace(planes, std::regex("ground_model: plane "), "ground_model: grid ");
 	ASSERT_NE(planes, corrected);
+	// And the rotation refined by ICP on the last 10 keyframes' points, keyframes only (the
+	// issue's goal on this sample: RTE under 0.57 % and RRE under 0.0086 deg/m at once).
+	// Measured: 0.370 %, 0.0068 deg/m, 3-4 ms a scan more than the grid alone.
+	const std::string refined = std::regex_replace(
+	    planes, std::regex("ground_model: plane "),
+	    "ground_model: grid\n    refine: rotation\n    refine_frames: keyframes # ");
+	ASSERT_NE(refined, corrected);
 	const std::string uncorrected =
 	    std::regex_replace(base, std::regex("ground_model: plane "), "ground_model: grid ");
 	std::map<std::string, std::string> results;
-	for (const auto& [name, text] : std::vector<std::pair<std::string, std::string>>{
-	         {"grid", corrected}, {"plane", planes}, {"uncorrected", uncorrected}})
+	for (const auto& [name, text] :
+	     std::vector<std::pair<std::string, std::string>>{{"grid", corrected},
+	                                                      {"plane", planes},
+	                                                      {"uncorrected", uncorrected},
+	                                                      {"refined", refined}})
 	{
 		const auto cfg = dir / (name + ".yaml");
 		std::ofstream(cfg) << text;
@@ -226,6 +236,10 @@ TEST(Kitti, GroundPatchesLowerTheRotationDrift)
 	EXPECT_LT(test::jsonNumber(results["grid"], "ate_rmse_m"), 0.05) << results["grid"];
 	EXPECT_LT(rre, 0.75 * test::jsonNumber(results["plane"], "rel_rot_deg_per_m"))
 	    << results["plane"];
+	const double refinedRre = test::jsonNumber(results["refined"], "rel_rot_deg_per_m");
+	EXPECT_LT(refinedRre, 0.0086) << results["refined"];
+	EXPECT_LT(test::jsonNumber(results["refined"], "rel_trans_pct"), 0.57) << results["refined"];
+	EXPECT_LT(refinedRre, rre) << results["refined"];
 	// Without the correction the same tracking is worse: the correction is what it needs.
 	EXPECT_GT(test::jsonNumber(results["uncorrected"], "rel_rot_deg_per_m"), 1.5 * rre)
 	    << results["uncorrected"];
