@@ -260,6 +260,8 @@ TEST(StrictConfig, OutOfRangeValuesNameFileLineAndKey)
 	    {"odometry", "rasterslam::OrbOdometry", "max_step_m", "0", "must be > 0, got 0"},
 	    {"odometry", "rasterslam::OrbOdometry", "refine_keyframes", "0",
 	     "must be in [1, 50], got 0"},
+	    {"odometry", "rasterslam::OrbOdometry", "refine_min_overlap", "1.5",
+	     "must be in [0, 1], got 1.5"},
 	    {"odometry", "rasterslam::GicpOdometry", "max_fitness_m2", "-1", "must be > 0, got -1"},
 	    {"odometry", "rasterslam::GicpOdometry", "min_range_m", "-2", "must be >= 0, got -2"},
 	    {"map_manager", "rasterslam::LocalMapManager", "keyframes_per_map", "0",

@@ -107,6 +107,7 @@ class OrbOdometry : public Odometry
 	/** refine_frames: keyframes (only the frames that become keyframes are refined: the others
 	 *  are not built upon, so their errors do not chain) or all. */
 	bool refineAll_ = true;
+	double refineMinOverlap_ = 0.2;  //!< refine_min_overlap (VLP-16: 0.4 refused every one)
 	std::deque<Cloud> refineMap_;  //!< per keyframe, oldest first, in the current keyframe's frame
 	std::unique_ptr<features::IcpTarget> kfTarget_;  //!< refineMap_'s points (refine on)
 	/** A new keyframe at `T_old_new` from the previous one (nullptr: the chain is broken, the
@@ -199,6 +200,8 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	refineKeyframes_ = p.getInt("refine_keyframes", 10);
 	p.requireRange(refineKeyframes_, 1, 50, "refine_keyframes");
 	refineAll_ = p.getChoice("refine_frames", "all", {"all", "keyframes"}) == "all";
+	refineMinOverlap_ = p.getDouble("refine_min_overlap", 0.2);
+	p.requireRange(refineMinOverlap_, 0, 1, "refine_min_overlap");
 	refineMap_.clear();
 	kfTarget_.reset();
 	prevCloud_.clear();
@@ -629,7 +632,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		{
 			const auto icp =
 			    features::icpPointToPlane(curSample, *kfTarget_, T_kf_curr, refineIcp_);
-			if (icp.converged && icp.overlap >= fallbackMinOverlap_ &&
+			if (icp.converged && icp.overlap >= refineMinOverlap_ &&
 			    icp.constraint >= fallbackMinConstraint_)
 			{
 				if (refine_ == Refine::Rotation)
