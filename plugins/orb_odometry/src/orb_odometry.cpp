@@ -110,6 +110,9 @@ class OrbOdometry : public Odometry
 	double refineMinOverlap_ = 0.2;  //!< refine_min_overlap (VLP-16: 0.4 refused every one)
 	std::deque<Cloud> refineMap_;  //!< per keyframe, oldest first, in the current keyframe's frame
 	std::unique_ptr<features::IcpTarget> kfTarget_;  //!< refineMap_'s points (refine on)
+	/** A frame since the keyframe was lost and kept no keyframe (too few features): the
+	 *  pose chain to the next keyframe rests on its guess, so the local map restarts there. */
+	bool guessSinceKf_ = false;
 	/** A new keyframe at `T_old_new` from the previous one (nullptr: the chain is broken, the
 	 *  local map restarts), whose points are `pts`: the refinement's target made anew. */
 	void advanceRefineMap(const Eigen::Isometry3d* T_old_new, const Cloud& pts);
@@ -204,6 +207,7 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	p.requireRange(refineMinOverlap_, 0, 1, "refine_min_overlap");
 	refineMap_.clear();
 	kfTarget_.reset();
+	guessSinceKf_ = false;
 	prevCloud_.clear();
 	// Upper bounds far beyond use (an elevation image has about 250,000 pixels; OpenCV's ORB
 	// defaults to 8 levels): larger values only overflow counts or exhaust memory.
@@ -673,13 +677,15 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 		// previous frame no longer matches T_kf_prev_: no bridge through it.
 		T_kf_prev_ = T_kf_curr;
 		prev_.reset();
+		guessSinceKf_ = guessSinceKf_ || !ok;
 		return r;
 	}
 	if (r.keyframe)
 	{
 		// A lost frame's pose is a guess: the local map does not go on through it.
 		if (refine_ != Refine::None)
-			advanceRefineMap(ok ? &T_kf_curr : nullptr, prevCloud_);
+			advanceRefineMap(ok && !guessSinceKf_ ? &T_kf_curr : nullptr, prevCloud_);
+		guessSinceKf_ = false;
 		r.keyframeData = keyframeOf(*cur);
 		kf_ = std::move(cur);
 		prev_.reset();
