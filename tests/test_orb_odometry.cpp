@@ -640,6 +640,25 @@ class SimScans : public ScanSource
 	const sim::Simulator& sim_;
 	std::size_t n_, k_ = 0;
 };
+
+/** The simulator's first n sensor poses, stamped as its scans. */
+eval::Trajectory truthOf(const sim::Simulator& simu, std::size_t n)
+{
+	eval::Trajectory t;
+	for (std::size_t k = 0; k < n; k++)
+		t.push_back({simu.stamp(k), toEigen(simu.sensorPose(k))});
+	return t;
+}
+
+/** An engine run's poses, stamped as the simulator's scans. */
+eval::Trajectory estimateOf(const sim::Simulator& simu,
+                            const std::vector<mrpt::poses::CPose3D>& poses)
+{
+	eval::Trajectory t;
+	for (std::size_t k = 0; k < poses.size(); k++)
+		t.push_back({simu.stamp(k), toEigen(poses[k])});
+	return t;
+}
 }  // namespace
 
 TEST(Deskew, SweepsTakenWhileMovingAreTrackedBetterDeskewed)
@@ -653,9 +672,7 @@ TEST(Deskew, SweepsTakenWhileMovingAreTrackedBetterDeskewed)
 	ASSERT_TRUE(sc.motion_within_sweep);
 	const std::size_t n = 300;
 	const auto simu = sim::Simulator::fromScenario(sc);
-	eval::Trajectory gt;
-	for (std::size_t k = 0; k < n; k++)
-		gt.push_back({simu.stamp(k), toEigen(simu.sensorPose(k))});
+	const auto gt = truthOf(simu, n);
 	std::map<std::string, eval::KittiRelativeResult> rel;
 	std::map<std::string, double> ate;
 	// Also with the ground grid (odometry ground_model: grid) and deskew: planar (the last
@@ -675,9 +692,7 @@ TEST(Deskew, SweepsTakenWhileMovingAreTrackedBetterDeskewed)
 		ASSERT_TRUE(res.error.empty()) << res.error;
 		ASSERT_EQ(res.poses.size(), n);
 		EXPECT_EQ(res.lost, 0u) << mode;
-		eval::Trajectory est;
-		for (std::size_t k = 0; k < n; k++)
-			est.push_back({simu.stamp(k), toEigen(res.poses[k])});
+		const auto est = estimateOf(simu, res.poses);
 		const auto a = eval::associate(gt, est, true);
 		rel[mode] = eval::computeKittiRelative(gt, est, a, {50, 100, 150, 200});
 		ate[mode] = eval::computeAte(gt, est, a).rmse_m;
@@ -708,9 +723,7 @@ TEST(OrbOdometry, LocalMapRefinementLowersTheVlp16RotationDrift)
 	const std::size_t n = sc.scans;
 	ASSERT_EQ(n, 400u);
 	const auto simu = sim::Simulator::fromScenario(sc);
-	eval::Trajectory gt;
-	for (std::size_t k = 0; k < n; k++)
-		gt.push_back({simu.stamp(k), toEigen(simu.sensorPose(k))});
+	const auto gt = truthOf(simu, n);
 	auto cfg =
 	    mrpt::containers::yaml::FromFile(test::sourcePath("share/rasterslam/config/tracking.yaml"));
 	cfg["odometry"]["params"]["ground_model"] = std::string("grid");
@@ -722,9 +735,7 @@ TEST(OrbOdometry, LocalMapRefinementLowersTheVlp16RotationDrift)
 	ASSERT_TRUE(res.error.empty()) << res.error;
 	ASSERT_EQ(res.poses.size(), n);
 	EXPECT_EQ(res.lost, 0u);
-	eval::Trajectory est;
-	for (std::size_t k = 0; k < n; k++)
-		est.push_back({simu.stamp(k), toEigen(res.poses[k])});
+	const auto est = estimateOf(simu, res.poses);
 	const auto a = eval::associate(gt, est, true);
 	const auto rel = eval::computeKittiRelative(gt, est, a, {50, 100, 150, 200});
 	const double ate = eval::computeAte(gt, est, a).rmse_m;
@@ -746,9 +757,7 @@ TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)
 	const auto sc = sim::loadScenario(test::sourcePath("rawlogs/indoor-handheld.yaml"));
 	const std::size_t n = 200;
 	const auto simu = sim::Simulator::fromScenario(sc);
-	eval::Trajectory gt;
-	for (std::size_t k = 0; k < n; k++)
-		gt.push_back({simu.stamp(k), toEigen(simu.sensorPose(k))});
+	const auto gt = truthOf(simu, n);
 	double gicpAte = 0;
 	for (const std::string name : {"gicp-indoor", "indoor"})
 	{
@@ -759,9 +768,7 @@ TEST(Indoor, HandheldWalkTrackedWithTheIndoorConfigs)
 		const auto res = e.run(src, {});
 		ASSERT_TRUE(res.error.empty()) << res.error;
 		ASSERT_EQ(res.poses.size(), n);
-		eval::Trajectory est;
-		for (std::size_t k = 0; k < n; k++)
-			est.push_back({simu.stamp(k), toEigen(res.poses[k])});
+		const auto est = estimateOf(simu, res.poses);
 		const double ate = eval::computeAte(gt, est, eval::associate(gt, est, true)).rmse_m;
 		std::cout << name << ": " << res.lost << " lost, ATE " << ate << " m\n";
 		if (name == "gicp-indoor")

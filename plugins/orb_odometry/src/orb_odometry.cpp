@@ -482,11 +482,6 @@ void OrbOdometry::advanceRefineMap(const Eigen::Isometry3d* T_old_new, const Clo
 	refineMap_.push_back(features::voxelDownsample(pts, refineIcp_.voxel_m));
 	while (static_cast<int>(refineMap_.size()) > refineKeyframes_)
 		refineMap_.pop_front();
-	if (refineMap_.size() == 1)
-	{
-		kfTarget_ = std::make_unique<features::IcpTarget>(refineMap_.back(), refineIcp_);
-		return;
-	}
 	Cloud all;
 	std::size_t n = 0;
 	for (const auto& c : refineMap_)
@@ -612,11 +607,11 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	// A bridged match says the keyframe can no longer be tracked: this frame takes over. A
 	// frame with too few features never becomes the reference (the next scan would have
 	// nothing to match): the old keyframe and previous frame stay.
+	const bool usable = static_cast<int>(cur->kps.size()) >= ransac_.minInliers;
 	const bool becomesKeyframe =
-	    static_cast<int>(cur->kps.size()) >= ransac_.minInliers &&
-	    ((sinceKf_ >= kfMinFrames_ && !bridged &&
-	      (ok ? static_cast<int>(est.inliers.size()) : 0) >= kfMinShared_) ||
-	     sinceKf_ >= kfMaxFrames_ || !ok || bridged);
+	    usable && ((sinceKf_ >= kfMinFrames_ && !bridged &&
+	                (ok ? static_cast<int>(est.inliers.size()) : 0) >= kfMinShared_) ||
+	               sinceKf_ >= kfMaxFrames_ || !ok || bridged);
 	if (ok)
 	{
 		// The motion-model check (see alignPlanes) only with ground_motion_check: on a VLP-16
@@ -668,7 +663,6 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 	if (ok)
 		velocity_ = T_prev_curr;
 
-	const bool usable = static_cast<int>(cur->kps.size()) >= ransac_.minInliers;
 	r.keyframe = becomesKeyframe;  // decided above, before the refinement
 	std::swap(prevCloud_, sample_);
 	if (!usable)
