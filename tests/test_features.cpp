@@ -500,6 +500,49 @@ TEST(Icp, RecoversAMotionAndReportsWhatGeometryLeavesFree)
 	}
 }
 
+TEST(Icp, APreparedTargetAlignsAsAFreshOneWhateverWentBefore)
+{
+	// A target fits a point's normal the first time an alignment reaches it. Aligning a
+	// source on a target that earlier alignments (a part of the scene, another pose) have
+	// used must give what the same source gives on a new target, to the last bit.
+	const auto target =
+	    scene({{-15, -15, 15, -15}, {15, -15, 15, 15}, {-15, 15, 15, 15}, {-5, -3, -5, 3}}, 4);
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.translation() = Eigen::Vector3d(0.4, -0.2, 0.05);
+	T.linear() = Eigen::AngleAxisd(2 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+	const auto source = moved(target, T.inverse());
+	// The earlier alignment sees only the points on one side of the yard.
+	std::vector<Eigen::Vector3f> part;
+	for (const auto& p : source)
+		if (p.x() > 5)
+			part.push_back(p);
+	ASSERT_GT(part.size(), 50u);
+	ASSERT_LT(part.size(), source.size() / 2);
+
+	const features::IcpParams prm;
+	const features::IcpTarget used(target, prm);
+	const auto first = features::icpPointToPlane(part, used, Eigen::Isometry3d::Identity(), prm);
+	ASSERT_TRUE(first.converged);
+	const auto again = features::icpPointToPlane(source, used, Eigen::Isometry3d::Identity(), prm);
+	const auto fresh = features::icpPointToPlane(source, features::IcpTarget(target, prm),
+	                                             Eigen::Isometry3d::Identity(), prm);
+	ASSERT_TRUE(fresh.converged);
+	EXPECT_EQ(again.iterations, fresh.iterations);
+	EXPECT_EQ(again.matched, fresh.matched);
+	EXPECT_TRUE(again.T.matrix() == fresh.T.matrix()) << again.T.matrix() << "\n"
+	                                                  << fresh.T.matrix();
+	EXPECT_TRUE(again.H == fresh.H);
+	// And the alignment is right (the normals it used are those of the scene).
+	EXPECT_LT((fresh.T.translation() - T.translation()).norm(), 0.01);
+	// Assessing a pose on the used target agrees with a fresh one as well.
+	const auto a = features::assessAlignment(source, used, fresh.T, prm);
+	const auto b =
+	    features::assessAlignment(source, features::IcpTarget(target, prm), fresh.T, prm);
+	EXPECT_EQ(a.matched, b.matched);
+	EXPECT_TRUE(a.H == b.H);
+	EXPECT_GT(a.overlap, 0.9);
+}
+
 TEST(Icp, VoxelDownsampleKeepsOnePointAVoxel)
 {
 	const std::vector<Eigen::Vector3f> pts = {{0.05f, 0.05f, 0.05f}, {0.15f, 0.05f, 0.05f},

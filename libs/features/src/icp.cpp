@@ -102,9 +102,53 @@ std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<PointXYZI>& pts, 
 
 struct IcpTarget::Impl
 {
-	std::vector<Eigen::Vector3f> pts, normals;
+	std::vector<Eigen::Vector3f> pts;
 	CloudAdaptor adaptor{pts};
 	std::unique_ptr<KdTree> tree;
+	int k = 10;
+	double minPlanarity = 0.7;
+	/** The normal of point i (zero where its neighbourhood is not flat), fitted on first use:
+	 *  an alignment reaches a part of the target only (the odometry's refinement on the KITTI
+	 *  sample, a keyframe's scan on the last ten keyframes' points: 29 % of them), and fitting
+	 *  every normal when the target was made cost more than the alignment. The same normals
+	 *  as fitted up front. Not safe for two threads on one target. */
+	const Eigen::Vector3f& normal(uint32_t i) const
+	{
+		if (!fitted[i])
+			fit(i);
+		return normals[i];
+	}
+
+   private:
+	mutable std::vector<Eigen::Vector3f> normals;
+	mutable std::vector<uint8_t> fitted;
+	mutable std::vector<uint32_t> idx;
+	mutable std::vector<float> d2;
+	friend class IcpTarget;
+	void fit(uint32_t i) const
+	{
+		fitted[i] = 1;
+		// The smallest principal direction of the neighbourhood, when it is flat.
+		const std::size_t n =
+		    tree->knnSearch(pts[i].data(), static_cast<std::size_t>(k), idx.data(), d2.data());
+		if (n < 3)
+			return;
+		Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+		for (std::size_t j = 0; j < n; j++)
+			mean += pts[idx[j]].cast<double>();
+		mean /= static_cast<double>(n);
+		Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+		for (std::size_t j = 0; j < n; j++)
+		{
+			const Eigen::Vector3d e = pts[idx[j]].cast<double>() - mean;
+			C += e * e.transpose();
+		}
+		const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+		const double sum = es.eigenvalues().sum();
+		if (!(sum > 0) || 1.0 - 3.0 * es.eigenvalues()(0) / sum < minPlanarity)
+			return;
+		normals[i] = es.eigenvectors().col(0).cast<float>();
+	}
 };
 
 IcpTarget::IcpTarget(const std::vector<Eigen::Vector3f>& in, const IcpParams& prm)
@@ -112,36 +156,15 @@ IcpTarget::IcpTarget(const std::vector<Eigen::Vector3f>& in, const IcpParams& pr
 {
 	auto& t = *impl_;
 	t.pts = voxelDownsample(in, prm.voxel_m);
-	const int k = std::max(3, prm.normalNeighbours);
-	if (t.pts.size() < static_cast<std::size_t>(k))
+	t.k = std::max(3, prm.normalNeighbours);
+	t.minPlanarity = prm.minPlanarity;
+	if (t.pts.size() < static_cast<std::size_t>(t.k))
 		return;
 	t.tree = std::make_unique<KdTree>(3, t.adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-	// Normals: the smallest principal direction of the neighbourhood, when it is flat.
 	t.normals.assign(t.pts.size(), Eigen::Vector3f::Zero());
-	std::vector<uint32_t> idx(static_cast<std::size_t>(k));
-	std::vector<float> d2(static_cast<std::size_t>(k));
-	for (std::size_t i = 0; i < t.pts.size(); i++)
-	{
-		const std::size_t n =
-		    t.tree->knnSearch(t.pts[i].data(), static_cast<std::size_t>(k), idx.data(), d2.data());
-		if (n < 3)
-			continue;
-		Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-		for (std::size_t j = 0; j < n; j++)
-			mean += t.pts[idx[j]].cast<double>();
-		mean /= static_cast<double>(n);
-		Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
-		for (std::size_t j = 0; j < n; j++)
-		{
-			const Eigen::Vector3d e = t.pts[idx[j]].cast<double>() - mean;
-			C += e * e.transpose();
-		}
-		const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
-		const double sum = es.eigenvalues().sum();
-		if (!(sum > 0) || 1.0 - 3.0 * es.eigenvalues()(0) / sum < prm.minPlanarity)
-			continue;
-		t.normals[i] = es.eigenvectors().col(0).cast<float>();
-	}
+	t.fitted.assign(t.pts.size(), 0);
+	t.idx.resize(static_cast<std::size_t>(t.k));
+	t.d2.resize(static_cast<std::size_t>(t.k));
 }
 
 IcpTarget::~IcpTarget() = default;
@@ -165,8 +188,8 @@ void assess(const std::vector<Eigen::Vector3f>& src, const IcpTarget& target, co
 	res.overlap = res.constraint = 0;
 	if (src.empty() || target.size() == 0)
 		return;
-	const auto& normals = target.impl().normals;
-	const KdTree& tree = *target.impl().tree;
+	const auto& tgt = target.impl();
+	const KdTree& tree = *tgt.tree;
 	const float in2 = static_cast<float>(prm.inlier_m * prm.inlier_m);
 	uint32_t nn = 0;
 	float nd2 = 0;
@@ -179,7 +202,7 @@ void assess(const std::vector<Eigen::Vector3f>& src, const IcpTarget& target, co
 		if (tree.knnSearch(qf.data(), 1, &nn, &nd2) != 1 || nd2 > in2)
 			continue;
 		++res.matched;
-		const Eigen::Vector3f& nf = normals[nn];
+		const Eigen::Vector3f& nf = tgt.normal(nn);
 		if (nf.squaredNorm() < 0.5f)
 			continue;
 		const Eigen::Vector3d n = nf.cast<double>();
@@ -220,8 +243,8 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 	if (src.size() < 6 || target.size() == 0)
 		return res;
 	const auto& dst = target.impl().pts;
-	const auto& normals = target.impl().normals;
-	const KdTree& tree = *target.impl().tree;
+	const auto& tgt = target.impl();
+	const KdTree& tree = *tgt.tree;
 
 	const float maxD2 = static_cast<float>(prm.maxCorrespondence_m * prm.maxCorrespondence_m);
 	using Mat6 = Eigen::Matrix<double, 6, 6>;
@@ -242,7 +265,7 @@ IcpResult icpPointToPlane(const std::vector<Eigen::Vector3f>& sourceIn, const Ic
 			const Eigen::Vector3f qf = q.cast<float>();
 			if (tree.knnSearch(qf.data(), 1, &nn, &nd2) != 1 || nd2 > maxD2)
 				continue;
-			const Eigen::Vector3f& nf = normals[nn];
+			const Eigen::Vector3f& nf = tgt.normal(nn);
 			if (nf.squaredNorm() < 0.5f)
 				continue;
 			const Eigen::Vector3d n = nf.cast<double>();

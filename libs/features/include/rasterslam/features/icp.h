@@ -49,8 +49,10 @@ struct IcpResult
 	double constraint = 0;
 };
 
-/** The target of an alignment, prepared once (voxel reduction, k-d tree, normals) so that
- *  several sources can be aligned on it: the scans tracked against one keyframe. */
+/** The target of an alignment, prepared once (voxel reduction, k-d tree) so that several
+ *  sources can be aligned on it: the scans tracked against one keyframe. A point's normal is
+ *  fitted the first time an alignment reaches it and kept: one target is not to be used by
+ *  two threads at once. */
 class IcpTarget
 {
    public:
