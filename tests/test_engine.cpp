@@ -2,9 +2,13 @@
 // odometry as extra graph edges, and the pose-graph optimizer on a graph with a known solution.
 #include <mrpt/core/initializer.h>
 #include <rasterslam/core/engine.h>
+#include <rasterslam/core/heap.h>
 #include <rasterslam/core/plugin_loader.h>
 
 #include <deque>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <random>
 
 #include "test_support.h"
@@ -204,4 +208,30 @@ TEST(Optimizer, RecoversAKnownSquare)
 	EXPECT_LT(r.finalError, r.initialError);
 	for (int i = 0; i < 8; i++)
 		EXPECT_NEAR((g.nodes[i] - truth[i]).asVectorVal().norm(), 0, 1e-4) << i;
+}
+
+TEST(Heap, ScanBlocksStayInTheHeapUnlessTheEnvironmentSaysOtherwise)
+{
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+	GTEST_SKIP() << "a sanitizer's allocator replaces glibc's heap";
+#elif !defined(__GLIBC__)
+	GTEST_SKIP() << "the heap policy is glibc's";
+#else
+	// The user's own settings stand: nothing is changed, and the reason names them.
+	ASSERT_EQ(::setenv("MALLOC_TOP_PAD_", "0", 1), 0);
+	const auto refused = keepScanBlocksInHeap();
+	::unsetenv("MALLOC_TOP_PAD_");
+	EXPECT_NE(refused.find("MALLOC_TOP_PAD_"), std::string::npos) << refused;
+
+	// Applied: a scan-sized block (4 MB) comes from the heap, not from a mapping of its own
+	// (glibc's default maps a block that size, the first time, and unmaps it when freed).
+	ASSERT_EQ(keepScanBlocksInHeap(), "");
+	const auto mappedBefore = ::mallinfo2().hblkhd;
+	std::vector<char> block(4u << 20, 1);
+	EXPECT_EQ(::mallinfo2().hblkhd, mappedBefore);
+	// And freeing it keeps it: the heap's free space grows by the block.
+	const auto freeBefore = ::mallinfo2().fordblks;
+	std::vector<char>().swap(block);
+	EXPECT_GE(::mallinfo2().fordblks, freeBefore + (4u << 20));
+#endif
 }

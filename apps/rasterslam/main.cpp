@@ -1,5 +1,6 @@
 // rasterslam: the command line of the SLAM pipeline.
 #include <mrpt/system/os.h>
+#include <rasterslam/core/heap.h>
 #include <rasterslam/core/plugin_loader.h>
 
 #include <cstdio>
@@ -49,6 +50,8 @@ int listPlugins()
 
 int main(int argc, char** argv)
 {
+	// Before anything is allocated: scans' blocks stay in the heap (see heap.h).
+	rasterslam::keepScanBlocksInHeap();
 	CLI::App app(kDescription, "rasterslam");
 	cli::configure(app, mrpt::system::MRPT_getVersion());
 	app.footer(std::string(kFooter) + cli::exitCodesFooter());

@@ -1,0 +1,22 @@
+// The process's heap policy for scan processing (glibc): what a program that runs the engine
+// calls once at its start.
+#pragma once
+
+#include <string>
+
+namespace rasterslam
+{
+/** Keeps the blocks a scan needs (its points, images, clouds: 0.1-10 MB each) in the heap
+ *  between scans instead of mapping them from the system and giving them back every time:
+ *  blocks up to 32 MB (glibc's own largest threshold) come from the heap, and free() no longer
+ * returns its top to the system (the engine's back end trims the heap every few keyframes,
+ * `malloc_trim`, so a long run stays flat). glibc's default maps and unmaps such blocks, or trims
+ * them, scan after scan, and each page is faulted in again: 310 page faults a KITTI scan, about a
+ * quarter of the tracking's time on a virtual machine (README, Tracking).
+ *
+ *  Does nothing, and says why in the returned text, where the heap is not glibc's or where the
+ *  user has set glibc's own heap settings (GLIBC_TUNABLES, MALLOC_MMAP_THRESHOLD_,
+ *  MALLOC_TRIM_THRESHOLD_, MALLOC_TOP_PAD_, MALLOC_MMAP_MAX_): theirs stand. Returns an empty
+ *  text when the policy was applied. */
+std::string keepScanBlocksInHeap();
+}  // namespace rasterslam
