@@ -70,6 +70,7 @@ const char* kShipped[] = {"share/rasterslam/config/slam.yaml",
                           "share/rasterslam/config/indoor.yaml",
                           "share/rasterslam/config/gicp-indoor.yaml",
                           "share/rasterslam/config/tracking.yaml",
+                          "share/rasterslam/config/tracking-refined.yaml",
                           "share/rasterslam/config/gicp-baseline.yaml",
                           "examples/plugin-template/config/flat-ground.yaml"};
 
@@ -353,6 +354,22 @@ TEST(StrictConfig, ShippedConfigsLoadToTheSameValues)
 		    << ss.str();
 		EXPECT_EQ(printed(engine2->configInForce()), ss.str()) << path;
 	}
+}
+
+TEST(StrictConfig, RefinedTrackingIsTrackingWithTheGridAndTheRefinement)
+{
+	// tracking-refined.yaml is what the benchmark's tracking+grid+refine rows run
+	// (scripts/benchmark.sh makes them from tracking.yaml): the same tree but for these keys.
+	auto refined = loadYamlFile(shipped("share/rasterslam/config/tracking-refined.yaml"));
+	auto base = loadYamlFile(shipped("share/rasterslam/config/tracking.yaml"));
+	EXPECT_NE(tree(refined), tree(base));
+	EXPECT_EQ(base["odometry"]["params"]["ground_model"].as<std::string>(), "plane");
+	base["odometry"]["params"]["ground_model"] = "grid";
+	base["odometry"]["params"]["refine"] = "rotation";
+	base["odometry"]["params"]["refine_frames"] = "keyframes";
+	base["odometry"]["params"]["refine_keyframes"] = "10";
+	// (MRPT's maps are ordered by key: the trees do not depend on where a key is written.)
+	EXPECT_EQ(tree(refined), tree(base));
 }
 
 TEST(StrictConfig, TreeMatchesMrptParserOnEveryForm)
