@@ -345,12 +345,47 @@ std::vector<LoopConstraint> BowLoopDetector::searchEarlierSessions(const Keyfram
                                                                    const Map& map,
                                                                    const PoseView& poses)
 {
-	if (!kf.data || !kf.inMapFrame || map.sessions < 2 || guidedRadius_m_ <= 0 ||
-	    kf.data->size() == 0)
+	if (!kf.data || !kf.inMapFrame || map.sessions < 2 || guidedRadius_m_ <= 0)
 		return {};
-	if (auto g = guidedSearch(queryOf(*kf.data), kf, map, poses))
-		return {*g};
-	return {};
+	if (kf.data->size() > 0)
+	{
+		if (auto g = guidedSearch(queryOf(*kf.data), kf, map, poses))
+			return {*g};
+		return {};
+	}
+	// The keyframe's features were released when its local map was finished (all but the
+	// open map's, in a session that drove a while before it was anchored): the local maps it
+	// anchors stand for it, their points in its frame, with its ground plane and their
+	// surfaces. Without this, only the last few keyframes before the anchoring were
+	// searched, and the way to it hung from one edge (1.6 m off at the start of a session
+	// that drove 240 m before it was located).
+	std::vector<LoopConstraint> out;
+	for (const auto id : map.localMapsOf(kf.node))
+	{
+		const auto& stub = map.localMaps.at(id);
+		if (stub->anchor() != kf.node || stub->session + 1 != map.sessions)
+			continue;
+		const auto lm = candidate(map, id);  // offline: read from the store
+		if (!lm || lm->points() == 0)
+			continue;
+		Query q;
+		q.desc = cv::Mat(static_cast<int>(lm->points()), 32, CV_8U,
+		                 const_cast<uint8_t*>(lm->descriptors.data()))
+		             .clone();
+		q.pts.reserve(lm->points());
+		for (std::size_t i = 0; i < lm->points(); i++)
+			q.pts.emplace_back(lm->xyz[3 * i], lm->xyz[3 * i + 1], lm->xyz[3 * i + 2]);
+		if (directLevels_ > 0 && vocab_)
+			q.groups = groupsOf(q.desc);
+		q.groundValid = kf.data->groundValid;
+		q.groundN = Eigen::Vector3d(kf.data->groundN[0], kf.data->groundN[1], kf.data->groundN[2]);
+		q.groundD = kf.data->groundD;
+		if (icpRefine_ && lm->surfacePoints() > 0)
+			q.surface = [lm] { return surfaceOf(*lm); };
+		if (auto g = guidedSearch(q, kf, map, poses))
+			out.push_back(*g);
+	}
+	return out;
 }
 
 std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, const Map& map,

@@ -53,14 +53,15 @@ bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surfac
 void BowLoopDetector::refineLoop(LoopConstraint& c, LoopDecision& d, const Query& q,
                                  const KeyframeInfo& kf, const Map& map, const PoseView& poses)
 {
-	if (!icpRefine_ || !kf.scan)
+	// The keyframe's scan, or the query's own surface when it has no scan (a local map).
+	if (!icpRefine_ || (!kf.scan && !q.surface))
 		return;
 	const auto lm = candidate(map, c.localMap);
 	if (!lm || lm->surfacePoints() == 0)
 		return;
 	const auto T_anchor_from = poses.at(c.from) - poses.at(lm->anchor());
 	Eigen::Isometry3d T = toIsometry(T_anchor_from + c.T_from_to);
-	if (!refineOnSurface(surfaceOf(*kf.scan), *lm, T))
+	if (!refineOnSurface(kf.scan ? surfaceOf(*kf.scan) : q.surface(), *lm, T))
 		return;
 	c.from = nearestKeyframe(*lm, T, poses, loopKeyframes(*lm, map, kf));
 	double tilt = 0;
