@@ -1,4 +1,6 @@
-// Trajectory files (TUM, KITTI), KITTI calibration and times, atomic writes.
+// Trajectory files (TUM, KITTI), KITTI calibration and times, atomic writes, a run's outputs.
+#include <rasterslam/core/pose_conversions.h>
+#include <rasterslam/io/run_outputs.h>
 #include <rasterslam/io/trajectory_io.h>
 
 #include <filesystem>
@@ -203,4 +205,68 @@ TEST(TrajectoryIo, KittiCalibOnRealData)
 	const auto times = io::loadKittiTimes(dir + "/times.txt");
 	ASSERT_EQ(times.size(), 101u);
 	EXPECT_DOUBLE_EQ(times[1], 1.037359e-01);
+}
+
+TEST(RunOutputs, LongRunsAreWrittenInChunksAndReadBackExactly)
+{
+	// 3,000 scans make each trajectory file several times the 64 kB chunk the outputs are
+	// streamed in: every line is written once, in order, and reads back to the same values.
+	const std::size_t n = 3000;
+	const auto est = randomTrajectory(n, 1.7e9, 5), online = randomTrajectory(n, 1.7e9, 6),
+	           truth = randomTrajectory(n, 1.7e9, 7);
+	RunResult res;
+	for (std::size_t i = 0; i < n; i++)
+	{
+		ScanRecord r;
+		r.index = i;
+		r.stamp = est[i].stamp;
+		r.inliers = i % 97;
+		r.onlinePose = toPose(online[i].pose).asTPose();
+		r.groundTruth = toPose(truth[i].pose).asTPose();
+		res.scans.push_back(r);
+		res.poses.push_back(toPose(est[i].pose));
+	}
+	LoopDecision l;
+	l.queryStamp = est[10].stamp;
+	l.reason = "ok";
+	res.loopDecisions.assign(2000, l);
+	const test::ScopedTempDir dir("run-outputs");
+	mrpt::containers::yaml info = mrpt::containers::yaml::Map();
+	info["scans"] = static_cast<uint64_t>(n);
+	io::writeRunOutputs(dir.path().string(), res, info);
+
+	auto expectSame = [&](const io::Trajectory& want, const io::Trajectory& got, double tol)
+	{
+		ASSERT_EQ(got.size(), want.size());
+		for (std::size_t i = 0; i < n; i++)
+		{
+			EXPECT_EQ(got[i].stamp, est[i].stamp) << i;  // every file has the scans' stamps
+			EXPECT_LT((got[i].pose.matrix() - want[i].pose.matrix()).cwiseAbs().maxCoeff(), tol)
+			    << i;
+		}
+	};
+	// Through CPose3D (yaw, pitch, roll) and back: equal to rounding.
+	expectSame(est, io::loadTrajectory((dir / "trajectory.tum").string()), 1e-9);
+	expectSame(online, io::loadTrajectory((dir / "trajectory_online.tum").string()), 1e-9);
+	expectSame(truth, io::loadTrajectory((dir / "groundtruth.tum").string()), 1e-9);
+	const auto kitti = io::loadTrajectory((dir / "trajectory.kitti").string());
+	ASSERT_EQ(kitti.size(), n);
+	EXPECT_LT((kitti[n - 1].pose.matrix() - est[n - 1].pose.matrix()).cwiseAbs().maxCoeff(), 1e-9);
+
+	auto lines = [&](const char* name)
+	{
+		std::ifstream in(dir / name);
+		std::vector<std::string> out;
+		for (std::string s; std::getline(in, s);)
+			out.push_back(s);
+		return out;
+	};
+	const auto csv = lines("timings.csv");
+	ASSERT_EQ(csv.size(), n + 1);
+	for (std::size_t i = 1; i <= n; i++)
+		ASSERT_EQ(csv[i].substr(0, csv[i].find(',')), std::to_string(i - 1)) << i;
+	EXPECT_EQ(lines("loops.txt").size(), 2001u);
+	// Nothing left under a temporary name.
+	for (const auto& e : fs::directory_iterator(dir.path()))
+		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }

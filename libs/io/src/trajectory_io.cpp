@@ -183,23 +183,26 @@ void saveTrajectoryTum(const std::string& path, const Trajectory& traj)
 	writeFileAtomically(path, formatTrajectoryTum(traj));
 }
 
+void appendTumLine(std::string& out, const StampedPose& sp)
+{
+	// Stamps in fixed notation (1.7e9 s with its microseconds stays readable); every number is
+	// the shortest text that reads back to the same double.
+	appendNumber(out, sp.stamp, std::chars_format::fixed);
+	const Eigen::Vector3d t = sp.pose.translation();
+	const Eigen::Quaterniond q(sp.pose.rotation());
+	for (double x : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()})
+	{
+		out += ' ';
+		appendNumber(out, x);
+	}
+	out += '\n';
+}
+
 std::string formatTrajectoryTum(const Trajectory& traj)
 {
-	std::string out = "# timestamp tx ty tz qx qy qz qw\n";
+	std::string out = kTumHeader;
 	for (const auto& sp : traj)
-	{
-		// Stamps in fixed notation (1.7e9 s with its microseconds stays readable); every
-		// number is the shortest text that reads back to the same double.
-		appendNumber(out, sp.stamp, std::chars_format::fixed);
-		const Eigen::Vector3d t = sp.pose.translation();
-		const Eigen::Quaterniond q(sp.pose.rotation());
-		for (double x : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()})
-		{
-			out += ' ';
-			appendNumber(out, x);
-		}
-		out += '\n';
-	}
+		appendTumLine(out, sp);
 	return out;
 }
 
@@ -208,23 +211,26 @@ void saveTrajectoryKitti(const std::string& path, const Trajectory& traj)
 	writeFileAtomically(path, formatTrajectoryKitti(traj));
 }
 
+void appendKittiLine(std::string& out, const Eigen::Isometry3d& pose)
+{
+	const Eigen::Matrix4d M = pose.matrix();
+	for (int r = 0; r < 3; ++r)
+	{
+		for (int c = 0; c < 4; ++c)
+		{
+			if (r || c)
+				out += ' ';
+			appendNumber(out, M(r, c));
+		}
+	}
+	out += '\n';
+}
+
 std::string formatTrajectoryKitti(const Trajectory& traj)
 {
 	std::string out;
 	for (const auto& sp : traj)
-	{
-		const Eigen::Matrix4d M = sp.pose.matrix();
-		for (int r = 0; r < 3; ++r)
-		{
-			for (int c = 0; c < 4; ++c)
-			{
-				if (r || c)
-					out += ' ';
-				appendNumber(out, M(r, c));
-			}
-		}
-		out += '\n';
-	}
+		appendKittiLine(out, sp.pose);
 	return out;
 }
 

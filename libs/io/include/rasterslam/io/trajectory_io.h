@@ -35,6 +35,12 @@ void saveTrajectoryKitti(const std::string& path, const Trajectory& traj);
 /** The text those functions write. */
 std::string formatTrajectoryTum(const Trajectory& traj);
 std::string formatTrajectoryKitti(const Trajectory& traj);
+/** One line of each (with its newline), appended to `out`: for writers that stream a long
+ *  trajectory instead of holding its whole text. */
+void appendTumLine(std::string& out, const StampedPose& sp);
+void appendKittiLine(std::string& out, const Eigen::Isometry3d& pose);
+/** The TUM file's header line, with its newline. */
+inline constexpr const char* kTumHeader = "# timestamp tx ty tz qx qy qz qw\n";
 
 /** Reads the `Tr:` line (Velodyne -> cam0) of a KITTI calib.txt as an isometry. */
 Eigen::Isometry3d loadKittiCalibTr(const std::string& calibPath);
