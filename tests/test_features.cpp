@@ -543,6 +543,50 @@ TEST(Icp, APreparedTargetAlignsAsAFreshOneWhateverWentBefore)
 	EXPECT_GT(a.overlap, 0.9);
 }
 
+TEST(Icp, TheTargetCacheMakesATargetAgainOnlyForOtherPoints)
+{
+	const auto yard =
+	    scene({{-15, -15, 15, -15}, {15, -15, 15, 15}, {-15, 15, 15, 15}, {-5, -3, -5, 3}}, 4);
+	Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+	shift.translation() = Eigen::Vector3d(0.5, 0, 0);
+	const auto shifted = moved(yard, shift);
+	const features::IcpParams prm;
+	features::IcpTargetCache cache(2, prm);
+	std::size_t calls = 0;
+	const auto of = [&calls](const std::vector<Eigen::Vector3f>& pts)
+	{
+		return [&calls, &pts]
+		{
+			++calls;
+			return pts;
+		};
+	};
+	const auto a = cache.get(7, 100, of(yard));
+	EXPECT_EQ(cache.get(7, 100, of(yard)), a);  // the same key and points: the same target
+	EXPECT_EQ(calls, 1u);
+	// The same key with other points (a local map grown, or another map's under the same id)
+	// is another target, and aligning on it sees those points.
+	const auto b = cache.get(7, 101, of(shifted));
+	EXPECT_NE(b, a);
+	EXPECT_EQ(calls, 2u);
+	const auto onB = features::icpPointToPlane(yard, *b, Eigen::Isometry3d::Identity(), prm);
+	ASSERT_TRUE(onB.converged);
+	EXPECT_LT((onB.T.translation() - shift.translation()).norm(), 0.01)
+	    << onB.T.translation().transpose();
+	// Two kept: a third drops the least recently used (a, since b was used last) ...
+	EXPECT_EQ(cache.get(7, 100, of(yard)), a);  // now a is the most recent
+	EXPECT_EQ(calls, 2u);
+	cache.get(8, 100, of(yard));
+	EXPECT_EQ(calls, 3u);
+	EXPECT_EQ(cache.size(), 2u);
+	cache.get(7, 100, of(yard));  // still kept
+	EXPECT_EQ(calls, 3u);
+	cache.get(7, 101, of(shifted));  // dropped, made again
+	EXPECT_EQ(calls, 4u);
+	EXPECT_EQ(cache.made(), 4u);
+	EXPECT_EQ(cache.size(), 2u);
+}
+
 TEST(Icp, VoxelDownsampleKeepsOnePointAVoxel)
 {
 	const std::vector<Eigen::Vector3f> pts = {{0.05f, 0.05f, 0.05f}, {0.15f, 0.05f, 0.05f},

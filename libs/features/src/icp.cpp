@@ -1,6 +1,7 @@
 #include <rasterslam/features/icp.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -86,6 +87,29 @@ std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<Eigen::Vector3f>&
 	for (const auto& [k, a] : cells)
 		out.push_back((a.sum / a.n).cast<float>());
 	return out;
+}
+
+IcpTargetCache::IcpTargetCache(std::size_t capacity, const IcpParams& params)
+    : capacity_(std::max<std::size_t>(capacity, 1)), params_(params)
+{
+}
+
+std::shared_ptr<const IcpTarget> IcpTargetCache::get(
+    uint64_t key, uint64_t fingerprint, const std::function<std::vector<Eigen::Vector3f>()>& points)
+{
+	for (std::size_t i = 0; i < entries_.size(); i++)
+		if (entries_[i].key == key && entries_[i].fingerprint == fingerprint)
+		{
+			std::rotate(entries_.begin(), entries_.begin() + static_cast<std::ptrdiff_t>(i),
+			            entries_.begin() + static_cast<std::ptrdiff_t>(i) + 1);
+			return entries_.front().target;
+		}
+	Entry e{key, fingerprint, std::make_shared<const IcpTarget>(points(), params_)};
+	++made_;
+	if (entries_.size() >= capacity_)
+		entries_.pop_back();
+	entries_.insert(entries_.begin(), std::move(e));
+	return entries_.front().target;
 }
 
 std::vector<Eigen::Vector3f> voxelDownsample(const std::vector<PointXYZI>& pts, double voxel_m,

@@ -142,13 +142,22 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 		};
 		constexpr std::size_t kChunk = 64 * 1024;
 		buf.clear();
-		if (ok)
-			produce(buf,
-			        [&]
-			        {
-				        if (buf.size() >= kChunk)
-					        write();
-			        });
+		try
+		{
+			if (ok)
+				produce(buf,
+				        [&]
+				        {
+					        if (buf.size() >= kChunk)
+						        write();
+				        });
+		}
+		catch (...)
+		{
+			f.close();
+			cleanup();  // a producer that throws (out of memory) leaves no temporary behind
+			throw;
+		}
 		write();
 		if (!ok || !f.flush())
 		{

@@ -375,8 +375,6 @@ std::vector<LoopConstraint> BowLoopDetector::searchEarlierSessions(const Keyfram
 		q.pts.reserve(lm->points());
 		for (std::size_t i = 0; i < lm->points(); i++)
 			q.pts.emplace_back(lm->xyz[3 * i], lm->xyz[3 * i + 1], lm->xyz[3 * i + 2]);
-		if (directLevels_ > 0 && vocab_)
-			q.groups = groupsOf(q.desc);
 		q.groundValid = kf.data->groundValid;
 		q.groundN = Eigen::Vector3d(kf.data->groundN[0], kf.data->groundN[1], kf.data->groundN[2]);
 		q.groundD = kf.data->groundD;

@@ -30,9 +30,17 @@ bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surfac
 	if (!icpRefine_ || surface.empty() || lm.surfacePoints() < 100)
 		return false;
 	const auto t0 = std::chrono::steady_clock::now();
-	const features::IcpTarget tgt(surfaceOf(lm), icp_);
+	std::lock_guard<std::mutex> lock(targetsMutex_);
+	if (!targets_)
+		targets_ = std::make_unique<features::IcpTargetCache>(4, icp_);
+	// The fingerprint covers the whole surface: a local map still being added to, or another
+	// map's local map under the same id, is another target.
+	uint64_t fingerprint = 1469598103934665603ull ^ static_cast<uint64_t>(lm.surfaceCm.size());
+	for (const int16_t v : lm.surfaceCm)
+		fingerprint = (fingerprint ^ static_cast<uint16_t>(v)) * 1099511628211ull;
+	const auto tgt = targets_->get(lm.id, fingerprint, [&lm] { return surfaceOf(lm); });
 	const auto t1 = std::chrono::steady_clock::now();
-	const auto r = features::icpPointToPlane(surface, tgt, T, icp_);
+	const auto r = features::icpPointToPlane(surface, *tgt, T, icp_);
 	const auto t2 = std::chrono::steady_clock::now();
 	const Eigen::Isometry3d delta = T.inverse() * r.T;
 	const double moved = delta.translation().norm();
@@ -42,7 +50,7 @@ bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surfac
 	    "surface refinement on local map %llu: %s, %d iterations, moved %.3f m %.2f deg, overlap "
 	    "%.2f; %zu and %zu points, %.1f + %.1f ms",
 	    static_cast<unsigned long long>(lm.id), ok ? "taken" : "refused", r.iterations, moved,
-	    turned, r.overlap, surface.size(), tgt.size(),
+	    turned, r.overlap, surface.size(), tgt->size(),
 	    std::chrono::duration<double, std::milli>(t1 - t0).count(),
 	    std::chrono::duration<double, std::milli>(t2 - t1).count());
 	if (ok)

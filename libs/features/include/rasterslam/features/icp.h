@@ -6,6 +6,8 @@
 
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -66,6 +68,34 @@ class IcpTarget
 
    private:
 	std::unique_ptr<Impl> impl_;
+};
+
+/** The last few targets made, each under a caller's key and a fingerprint of its points:
+ *  a target is made again only when no cached one has both (the loop refinement aligns the
+ *  keyframes of a revisit, one after the other, on the same local maps). Not thread-safe:
+ *  a caller that shares it locks around get() and the alignments on what it returns. */
+class IcpTargetCache
+{
+   public:
+	IcpTargetCache(std::size_t capacity, const IcpParams& params);
+	/** The target under `key` made of `points()`, from the cache when `fingerprint` is that
+	 *  of the cached one's points (else made, the least recently used dropped). */
+	std::shared_ptr<const IcpTarget> get(
+	    uint64_t key, uint64_t fingerprint,
+	    const std::function<std::vector<Eigen::Vector3f>()>& points);
+	std::size_t size() const { return entries_.size(); }
+	std::size_t made() const { return made_; }  //!< targets made so far
+
+   private:
+	struct Entry
+	{
+		uint64_t key = 0, fingerprint = 0;
+		std::shared_ptr<const IcpTarget> target;
+	};
+	std::size_t capacity_;
+	IcpParams params_;
+	std::vector<Entry> entries_;  //!< most recently used first
+	std::size_t made_ = 0;
 };
 
 /** One point per occupied voxel (the mean of its points). */
