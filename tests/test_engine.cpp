@@ -45,12 +45,74 @@ class FixedStepOdometry : public Odometry
 	int every_ = 3, n_ = 0;
 	CPose3D step_;
 };
+
+/** A map manager that keeps an empty map: what a loop detector needs to be queried. */
+class EmptyMapManager : public MapManager
+{
+	DEFINE_MRPT_OBJECT(EmptyMapManager, rasterslam::test)
+   public:
+	MappingUpdate addKeyframe(const KeyframeInfo&, const Scan&, const RasterFrame*,
+	                          const PoseView&) override
+	{
+		return {};
+	}
+	MappingUpdate finish(const PoseView&) override { return {}; }
+	const Map& map() const override { return map_; }
+	void loadMap(const std::string&) override {}
+	void saveMap(const std::string&, const PoseView&, const std::string&,
+	             const std::vector<uint8_t>&) override
+	{
+	}
+
+   protected:
+	void initializeImpl(ParamReader&) override {}
+
+   private:
+	Map map_;
+};
+
+/** A loop detector that finds nothing and records two decisions a query, numbered. */
+class TwoDecisionsLoopDetector : public LoopDetector
+{
+	DEFINE_MRPT_OBJECT(TwoDecisionsLoopDetector, rasterslam::test)
+   public:
+	void index(const LocalMap&, const std::vector<uint8_t>&) override {}
+	std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map&, const PoseView&) override
+	{
+		for (int k = 0; k < 2; k++)
+		{
+			LoopDecision d;
+			d.queryStamp = kf.stamp;
+			d.inliers = made_++;
+			d.reason = "inliers";
+			decisions_.push_back(d);
+		}
+		return {};
+	}
+	RelocalizationResult relocalize(const Scan&, const RasterFrame&, const Map&,
+	                                const PoseView&) override
+	{
+		return {};
+	}
+	std::vector<uint8_t> savePlaceIndex() override { return {}; }
+	void loadPlaceIndex(const Map&) override {}
+
+   protected:
+	void initializeImpl(ParamReader&) override {}
+
+   private:
+	std::size_t made_ = 0;
+};
 }  // namespace rasterslam::test
 
 IMPLEMENTS_MRPT_OBJECT(FixedStepOdometry, rasterslam::Odometry, rasterslam::test)
+IMPLEMENTS_MRPT_OBJECT(EmptyMapManager, rasterslam::MapManager, rasterslam::test)
+IMPLEMENTS_MRPT_OBJECT(TwoDecisionsLoopDetector, rasterslam::LoopDetector, rasterslam::test)
 MRPT_INITIALIZER(register_test_plugins)
 {
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::FixedStepOdometry));
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::EmptyMapManager));
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::TwoDecisionsLoopDetector));
 }
 
 namespace
@@ -95,6 +157,48 @@ std::deque<Scan> makeScans(int n, bool withOdometry, const CPose3D& odoStep)
 	return out;
 }
 }  // namespace
+
+TEST(Engine, LoopDecisionsAreHandedOverAsTheRunGoesWhenAsked)
+{
+	// A lifelong run keeps no loop decision in memory: with onLoopDecisions set, each
+	// keyframe's decisions are handed over once it is processed, in order, and the result
+	// keeps none (only their count); without it, the result has them all, as before.
+	const auto cfg = yaml::FromText(
+	    "odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 3}}\n"
+	    "map_manager: {class: rasterslam::test::EmptyMapManager}\n"
+	    "loop_detector: {class: rasterslam::test::TwoDecisionsLoopDetector}\n");
+	std::vector<LoopDecision> handed;
+	std::vector<std::size_t> scansSeenAtHandover;
+	std::size_t scansSeen = 0;
+	RunOptions o;
+	o.onScan = [&](const ScanRecord&, double) { ++scansSeen; };
+	o.onLoopDecisions = [&](std::vector<LoopDecision>&& d)
+	{
+		scansSeenAtHandover.push_back(scansSeen);
+		for (auto& l : d)
+			handed.push_back(std::move(l));
+	};
+	Engine e(cfg, "t.yaml");
+	VectorSource src(makeScans(30, false, CPose3D()));
+	const auto res = e.run(src, o);
+	ASSERT_EQ(res.keyframes, 10u);
+	EXPECT_TRUE(res.loopDecisions.empty());
+	EXPECT_EQ(res.loopDecisionsMade, 20u);
+	ASSERT_EQ(handed.size(), 20u);
+	for (std::size_t i = 0; i < handed.size(); i++)
+		EXPECT_EQ(handed[i].inliers, i);  // every one, in the order made
+	// Handed over during the run, a keyframe at a time, not all at its end.
+	ASSERT_FALSE(scansSeenAtHandover.empty());
+	EXPECT_LT(scansSeenAtHandover.front(), 5u);
+	EXPECT_GE(scansSeenAtHandover.size(), 10u);
+
+	Engine kept(cfg, "t.yaml");
+	VectorSource src2(makeScans(30, false, CPose3D()));
+	const auto all = kept.run(src2, {});
+	EXPECT_EQ(all.loopDecisionsMade, 20u);
+	ASSERT_EQ(all.loopDecisions.size(), 20u);
+	EXPECT_EQ(all.loopDecisions.back().inliers, 19u);
+}
 
 TEST(Engine, KeyframesAndAPoseForEveryScan)
 {

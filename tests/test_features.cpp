@@ -573,7 +573,7 @@ TEST(Icp, TheTargetCacheMakesATargetAgainOnlyForOtherPoints)
 	ASSERT_TRUE(onB.converged);
 	EXPECT_LT((onB.T.translation() - shift.translation()).norm(), 0.01)
 	    << onB.T.translation().transpose();
-	// Two kept: a third drops the least recently used (a, since b was used last) ...
+	// Two kept: after a is used again, a third drops the least recently used, b.
 	EXPECT_EQ(cache.get(7, 100, of(yard)), a);  // now a is the most recent
 	EXPECT_EQ(calls, 2u);
 	cache.get(8, 100, of(yard));

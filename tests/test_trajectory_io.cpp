@@ -270,3 +270,74 @@ TEST(RunOutputs, LongRunsAreWrittenInChunksAndReadBackExactly)
 	for (const auto& e : fs::directory_iterator(dir.path()))
 		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }
+
+TEST(RunOutputs, SpooledLoopDecisionsComeFirstInLoopsTxtInTheirOrder)
+{
+	// A run hands its loop decisions to a spool as it makes them (rasterslam run), and those
+	// still in the result come after them: loops.txt has every one, in the order made, each
+	// line as appendLoopLine writes it.
+	RunResult res;
+	for (std::size_t i = 0; i < 3; i++)
+	{
+		ScanRecord r;
+		r.index = i;
+		r.stamp = 100.0 + i;
+		res.scans.push_back(r);
+		res.poses.emplace_back();
+	}
+	auto decision = [](std::size_t i)
+	{
+		LoopDecision l;
+		l.queryStamp = 1.7e9 + 0.1 * static_cast<double>(i);
+		l.candidateStamp = static_cast<double>(i);
+		l.inliers = i;
+		l.verified = i % 3 == 0;
+		l.accepted = i % 6 == 0;
+		l.reason = l.verified ? "ok" : "inliers";
+		l.T_candidate_query = mrpt::poses::CPose3D(0.01 * i, -2, 0.5, 0.001 * i, 0, 0);
+		return l;
+	};
+	io::LoopDecisionSpool spool;
+	std::vector<std::string> want;
+	for (std::size_t batch = 0; batch < 40; batch++)  // 40 keyframes of 100: about 12 chunks
+	{
+		std::vector<LoopDecision> d;
+		for (std::size_t k = 0; k < 100; k++)
+			d.push_back(decision(100 * batch + k));
+		spool.append(d);
+	}
+	for (std::size_t i = 4000; i < 4005; i++)
+		res.loopDecisions.push_back(decision(i));
+	for (std::size_t i = 0; i < 4005; i++)
+	{
+		std::string s;
+		io::appendLoopLine(s, decision(i));
+		want.push_back(s.substr(0, s.size() - 1));
+	}
+	EXPECT_EQ(spool.size(), 4000u);
+	const test::ScopedTempDir dir("run-outputs-spool");
+	const mrpt::containers::yaml info = mrpt::containers::yaml::Map();
+	auto loops = [&]
+	{
+		std::ifstream in(dir / "loops.txt");
+		std::vector<std::string> out;
+		for (std::string s; std::getline(in, s);)
+			out.push_back(s);
+		return out;
+	};
+	io::writeRunOutputs(dir.path().string(), res, info, &spool);
+	auto got = loops();
+	ASSERT_EQ(got.size(), want.size() + 1);
+	EXPECT_EQ(got[0].rfind("# query_stamp", 0), 0u);
+	for (std::size_t i = 0; i < want.size(); i++)
+		ASSERT_EQ(got[i + 1], want[i]) << i;
+	EXPECT_NE(got[7].find(" 1 1 ok "), std::string::npos) << got[7];  // decision 6: accepted
+	// Written again (a second write of the same run), the spool gives the same lines: it is
+	// read from its start, not consumed.
+	io::writeRunOutputs(dir.path().string(), res, info, &spool);
+	EXPECT_EQ(loops(), got);
+	// Only spooled decisions (none left in the result): loops.txt all the same.
+	res.loopDecisions.clear();
+	io::writeRunOutputs(dir.path().string(), res, info, &spool);
+	EXPECT_EQ(loops().size(), 4001u);
+}

@@ -328,6 +328,20 @@ int runCommand(const RunArgs& args)
 				fs::rename(tmp, path);
 		};
 	}
+	// The loop detector's decisions go to a temporary file as they are made (a lifelong run
+	// keeps none in memory) and into loops.txt at the end; kept in memory only when no
+	// temporary file can be made.
+	std::unique_ptr<io::LoopDecisionSpool> loopSpool;
+	try
+	{
+		loopSpool = std::make_unique<io::LoopDecisionSpool>();
+		opts.onLoopDecisions = [spool = loopSpool.get()](std::vector<LoopDecision>&& d)
+		{ spool->append(d); };
+	}
+	catch (const std::exception& e)
+	{
+		std::cerr << "rasterslam: warning: " << e.what() << "; loop decisions kept in memory\n";
+	}
 	std::string runError;
 	opts.stop = &gStopSignal;
 	try
@@ -486,7 +500,7 @@ int runCommand(const RunArgs& args)
 	{
 		if (!res.scans.empty())
 		{
-			io::writeRunOutputs(outDir, res, info);
+			io::writeRunOutputs(outDir, res, info, loopSpool.get());
 			wrote = true;
 		}
 	}

@@ -386,6 +386,12 @@ void Backend::process(KeyframeJob& job)
 			++res_.loopEdges;
 			optimizationPending_ = true;
 		}
+		if (s_.onLoopDecisions)
+		{
+			auto d = loopDetector_->takeDecisions();
+			res_.loopDecisionsMade += d.size();
+			s_.onLoopDecisions(std::move(d));
+		}
 		// Outside the graph lock: this may write a local map to the offline store, and the
 		// tracking takes that lock every scan.
 		for (const auto& [from, to] : accepted)

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <random>
 #include <set>
@@ -34,6 +35,8 @@ struct BackendSettings
 	 *  follows the online map, not the whole run. False: the whole graph every time. */
 	bool optimizeOnlineWindow = true;
 	double testCorruptLoops = 0;
+	/** RunOptions::onLoopDecisions: the detector's decisions after every keyframe. */
+	std::function<void(std::vector<LoopDecision>&&)> onLoopDecisions;
 };
 
 class Backend

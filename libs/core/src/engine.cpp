@@ -368,6 +368,7 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	bs.optimizeEveryKeyframes = optimizeEveryKeyframes_;
 	bs.optimizeOnlineWindow = optimizeOnlineWindow_;
 	bs.testCorruptLoops = testCorruptLoops_;
+	bs.onLoopDecisions = opts.onLoopDecisions;
 	RunState s(*this, source, opts, bs);
 	s.res.graph.clear();
 	// Keyframe ids continue those of a loaded map: unique across its sessions.
@@ -947,7 +948,15 @@ void Engine::finishRun(RunState& s)
 			res.scans[record].ms.loop += t.loop;
 		}
 	if (loopDetector_)
-		res.loopDecisions = loopDetector_->decisions();
+	{
+		// Moved, not copied: at the end of a long run they are the biggest record kept.
+		auto d = loopDetector_->takeDecisions();
+		res.loopDecisionsMade += d.size();
+		if (s.opts.onLoopDecisions)
+			s.opts.onLoopDecisions(std::move(d));
+		else
+			res.loopDecisions = std::move(d);
+	}
 	res.cpuBackend_s = s.backend.cpuSeconds();
 	res.memoryTrim_ms = s.backend.trimMs();
 	res.cpuTracking_s = detail::threadCpuSeconds() - s.cpu0;

@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -33,8 +35,59 @@ void ensureWritableDir(const std::string& dir)
 		throw std::runtime_error("output folder '" + dir + "' is not writable");
 }
 
+void appendLoopLine(std::string& buf, const LoopDecision& l)
+{
+	const auto q = mrpt::poses::CPose3DQuat(l.T_candidate_query);
+	buf += mrpt::format("%.6f %.6f %.6f %zu %d %d %s %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n",
+	                    l.queryStamp, l.candidateStamp, l.score, l.inliers, l.verified ? 1 : 0,
+	                    l.accepted ? 1 : 0, l.reason.empty() ? "-" : l.reason.c_str(), q.x(), q.y(),
+	                    q.z(), q.quat().x(), q.quat().y(), q.quat().z(), q.quat().r());
+}
+
+LoopDecisionSpool::LoopDecisionSpool() : f_(std::tmpfile())
+{
+	if (!f_)
+		throw std::runtime_error(std::string("no temporary file for the loop decisions: ") +
+		                         std::strerror(errno));
+}
+
+LoopDecisionSpool::~LoopDecisionSpool()
+{
+	if (f_)
+		std::fclose(f_);
+}
+
+void LoopDecisionSpool::append(const std::vector<LoopDecision>& decisions)
+{
+	if (decisions.empty() || failed_)
+		return;
+	std::string buf;
+	for (const auto& l : decisions)
+		appendLoopLine(buf, l);
+	failed_ = std::fwrite(buf.data(), 1, buf.size(), f_) != buf.size();
+	lines_ += decisions.size();
+}
+
+void LoopDecisionSpool::copyTo(std::string& buf, const std::function<void()>& flush) const
+{
+	if (failed_ || std::fflush(f_) != 0 || std::fseek(f_, 0, SEEK_SET) != 0)
+		throw std::runtime_error(
+		    "the loop decisions could not be kept in a temporary file (disk full?)");
+	char chunk[64 * 1024];
+	std::size_t n = 0;
+	while ((n = std::fread(chunk, 1, sizeof(chunk), f_)) > 0)
+	{
+		buf.append(chunk, n);
+		flush();
+	}
+	const bool bad = std::ferror(f_) != 0;
+	std::fseek(f_, 0, SEEK_END);  // appending may go on
+	if (bad)
+		throw std::runtime_error("the loop decisions' temporary file could not be read back");
+}
+
 void writeRunOutputs(const std::string& dir, const RunResult& res,
-                     const mrpt::containers::yaml& runInfo)
+                     const mrpt::containers::yaml& runInfo, const LoopDecisionSpool* spooledLoops)
 {
 	ensureWritableDir(dir);
 	const fs::path d(dir);
@@ -97,22 +150,19 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 			    flush();
 		    }
 	    });
-	if (!res.loopDecisions.empty())
+	if (!res.loopDecisions.empty() || (spooledLoops && spooledLoops->size() > 0))
 		files.emplace_back(
 		    "loops.txt",
-		    [&res](std::string& buf, const std::function<void()>& flush)
+		    [&res, spooledLoops](std::string& buf, const std::function<void()>& flush)
 		    {
 			    buf +=
 			        "# query_stamp candidate_stamp score inliers verified accepted reason x y z "
 			        "qx qy qz qw\n";
+			    if (spooledLoops)
+				    spooledLoops->copyTo(buf, flush);
 			    for (const auto& l : res.loopDecisions)
 			    {
-				    const auto q = mrpt::poses::CPose3DQuat(l.T_candidate_query);
-				    buf += mrpt::format(
-				        "%.6f %.6f %.6f %zu %d %d %s %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n",
-				        l.queryStamp, l.candidateStamp, l.score, l.inliers, l.verified ? 1 : 0,
-				        l.accepted ? 1 : 0, l.reason.empty() ? "-" : l.reason.c_str(), q.x(), q.y(),
-				        q.z(), q.quat().x(), q.quat().y(), q.quat().z(), q.quat().r());
+				    appendLoopLine(buf, l);
 				    flush();
 			    }
 		    });
@@ -152,11 +202,12 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 						        write();
 				        });
 		}
-		catch (...)
+		catch (const std::exception& e)
 		{
 			f.close();
-			cleanup();  // a producer that throws (out of memory) leaves no temporary behind
-			throw;
+			cleanup();  // a producer that throws leaves no temporary behind
+			throw std::runtime_error("error writing '" + (d / name).string() + "': " + e.what() +
+			                         "; the previous outputs are kept");
 		}
 		write();
 		if (!ok || !f.flush())

@@ -87,8 +87,9 @@ class BowLoopDetector : public LoopDetector
 	/** icp_refine: local maps' surfaces prepared as ICP targets, the last few (consecutive
 	 *  keyframes of a revisit close their loops on the same local maps: 7.5 -> 5.0 ms a
 	 *  refinement on the town loop). Held under targetsMutex_ while aligning (a target's
-	 *  normals are fitted as alignments reach them; relocalization may run on the tracking
-	 *  thread while loops are closed on the back end's). */
+	 *  normals are fitted as alignments reach them). The engine already serializes loop
+	 *  closing and relocalization under its map lock; this one keeps the detector safe
+	 *  without it. */
 	mutable std::unique_ptr<features::IcpTargetCache> targets_;
 	mutable std::mutex targetsMutex_;
 	bool icpRefine_ = false;

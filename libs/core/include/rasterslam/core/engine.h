@@ -58,6 +58,10 @@ struct RunOptions
 	bool relocalizeFirstScan = false;
 	/** Called after every processed scan. */
 	std::function<void(const ScanRecord&, double progress)> onScan;
+	/** When set, the loop detector's decisions are handed over after every keyframe, on the
+	 *  back end's thread, instead of being kept in RunResult::loopDecisions: a lifelong run
+	 *  keeps none of them in memory (rasterslam run writes them to a temporary file). */
+	std::function<void(std::vector<LoopDecision>&&)> onLoopDecisions;
 	/** Called with every rasterized image (e.g. to save it), when a rasterizer is set. */
 	std::function<void(const Scan&, const RasterFrame&)> onRaster;
 	/** When set and non-zero (e.g. a signal handler stored the signal's number), the run
@@ -98,8 +102,10 @@ struct RunResult
 	/** CPU time of the tracking and of the back end (mapping, loop closing, online
 	 *  optimization), s; in real-time mode each is its own thread. */
 	double cpuTracking_s = 0, cpuBackend_s = 0;
-	/** What the loop detector examined (empty without one). */
+	/** What the loop detector examined (empty without one, and when
+	 *  RunOptions::onLoopDecisions took them); loopDecisionsMade counts them either way. */
 	std::vector<LoopDecision> loopDecisions;
+	std::size_t loopDecisionsMade = 0;
 	/** Empty if the input ended normally; else where and why it stopped early. */
 	std::string stopReason;
 	/** The value RunOptions::stop held when it stopped the run; 0 when it did not. */

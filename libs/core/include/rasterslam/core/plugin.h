@@ -296,8 +296,16 @@ class LoopDetector : public Plugin
 	virtual std::vector<uint8_t> savePlaceIndex() = 0;
 	/** Restores a place index saved with `map` (after the map manager loaded it). */
 	virtual void loadPlaceIndex(const Map& map) = 0;
-	/** Every candidate examined so far, in order. */
+	/** Every candidate examined so far (since the last takeDecisions()), in order. */
 	const std::vector<LoopDecision>& decisions() const { return decisions_; }
+	/** Moves out the decisions made since the last call: a long run hands them on as it goes
+	 *  (RunOptions::onLoopDecisions) instead of keeping every one. */
+	std::vector<LoopDecision> takeDecisions()
+	{
+		std::vector<LoopDecision> d;
+		d.swap(decisions_);
+		return d;
+	}
 
    protected:
 	std::vector<LoopDecision> decisions_;
