@@ -198,6 +198,28 @@ TEST(Engine, LoopDecisionsAreHandedOverAsTheRunGoesWhenAsked)
 	EXPECT_EQ(all.loopDecisionsMade, 20u);
 	ASSERT_EQ(all.loopDecisions.size(), 20u);
 	EXPECT_EQ(all.loopDecisions.back().inliers, 19u);
+
+	// Played at the scans' stamps (ten times faster), where the back end works while the
+	// tracking waits: the same decisions, each handed over once.
+	Engine paced(cfg, "t.yaml");
+	VectorSource src3(makeScans(30, false, CPose3D()));
+	std::vector<std::size_t> inliers;
+	RunOptions rt;
+	rt.realtime = true;
+	rt.rate = 10;
+	rt.onLoopDecisions = [&](std::vector<LoopDecision>&& d)
+	{
+		EXPECT_FALSE(d.empty());  // nothing to hand over is not handed over
+		for (const auto& l : d)
+			inliers.push_back(l.inliers);
+	};
+	const auto rtRes = paced.run(src3, rt);
+	ASSERT_EQ(rtRes.keyframes, 10u);
+	EXPECT_TRUE(rtRes.loopDecisions.empty());
+	EXPECT_EQ(rtRes.loopDecisionsMade, 20u);
+	ASSERT_EQ(inliers.size(), 20u);
+	for (std::size_t i = 0; i < inliers.size(); i++)
+		EXPECT_EQ(inliers[i], i);
 }
 
 TEST(Engine, KeyframesAndAPoseForEveryScan)

@@ -382,7 +382,9 @@ TEST(RasterslamCli, SigintOrSigtermWritesTheOutputsAndTheMapForWhatWasProcessed)
 		for (const auto* d : {"", "-map", "-map/store"})
 			for (const auto& e : fs::directory_iterator(dir / (out + d)))
 				if (e.path() != live)
+				{
 					EXPECT_FALSE(contains(e.path().filename().string(), ".tmp-")) << e.path();
+				}
 	}
 	EXPECT_FALSE(fs::exists(stale));
 	EXPECT_TRUE(fs::exists(live));

@@ -323,7 +323,9 @@ TEST(Relocalization, KittiStreetRevisitsRenderedFromRealScans)
 	// at or over min_score (0.3).
 	for (const auto& l : readReloc(dir / "reloc" / "relocalization.txt"))
 		if (l.found)
+		{
 			EXPECT_GE(l.score, 0.3);
+		}
 
 	// Scans of another (simulated) town, same sensor: none is placed in the KITTI street.
 	const auto other = (dir / "town.rawlog").string();

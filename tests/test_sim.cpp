@@ -468,7 +468,9 @@ TEST(SimRoute, SlowsForCornersWithinItsBounds)
 			ASSERT_LE(v, vCorner * 1.001) << "too fast in a corner at t = " << t0;
 		}
 		if (prevV >= 0)
+		{
 			ASSERT_LE(std::abs(v - prevV) / dt, aLon * 1.05) << t0;
+		}
 		prevV = v;
 		slowest = std::min(slowest, v);
 	}

@@ -3,8 +3,12 @@
 #include <rasterslam/io/run_outputs.h>
 #include <rasterslam/io/trajectory_io.h>
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 
 #include "test_support.h"
@@ -299,7 +303,7 @@ TEST(RunOutputs, SpooledLoopDecisionsComeFirstInLoopsTxtInTheirOrder)
 	};
 	io::LoopDecisionSpool spool;
 	std::vector<std::string> want;
-	for (std::size_t batch = 0; batch < 40; batch++)  // 40 keyframes of 100: about 12 chunks
+	for (std::size_t batch = 0; batch < 40; batch++)  // 40 keyframes of 100: about 8 chunks
 	{
 		std::vector<LoopDecision> d;
 		for (std::size_t k = 0; k < 100; k++)
@@ -340,4 +344,94 @@ TEST(RunOutputs, SpooledLoopDecisionsComeFirstInLoopsTxtInTheirOrder)
 	res.loopDecisions.clear();
 	io::writeRunOutputs(dir.path().string(), res, info, &spool);
 	EXPECT_EQ(loops().size(), 4001u);
+}
+
+TEST(RunOutputs, ASpoolThatLostLinesSaysWhyAndThePreviousOutputsStayWhole)
+{
+	// A full disk under the spool (/dev/full: every write fails with ENOSPC) must cost
+	// loops.txt only: finish() gives the system's reason, writing with that spool fails naming
+	// loops.txt and keeps the previous outputs, and the outputs without it can still be written
+	// (rasterslam run does so, and reports the error).
+	std::FILE* full = std::fopen("/dev/full", "w+");
+	if (!full)
+		GTEST_SKIP() << "no /dev/full on this system";
+	RunResult res;
+	for (std::size_t i = 0; i < 4; i++)
+	{
+		ScanRecord r;
+		r.index = i;
+		r.stamp = 50.0 + i;
+		res.scans.push_back(r);
+		res.poses.emplace_back(static_cast<double>(i), 0, 0, 0, 0, 0);
+	}
+	LoopDecision kept;
+	kept.queryStamp = 51;
+	kept.reason = "ok";
+	res.loopDecisions.push_back(kept);
+	const test::ScopedTempDir dir("run-outputs-full-spool");
+	const mrpt::containers::yaml info = mrpt::containers::yaml::Map();
+	io::writeRunOutputs(dir.path().string(), res, info);
+	auto read = [&](const std::string& name)
+	{
+		std::ifstream in(dir / name);
+		return std::string(std::istreambuf_iterator<char>(in), {});
+	};
+	const std::string trajectoryBefore = read("trajectory.tum");
+	const std::string loopsBefore = read("loops.txt");
+	ASSERT_FALSE(loopsBefore.empty());
+
+	io::LoopDecisionSpool spool(full);
+	std::vector<LoopDecision> many(200, kept);  // more than the stream's buffer
+	spool.append(many);
+	const std::string why = spool.finish();
+	EXPECT_NE(why.find(std::strerror(ENOSPC)), std::string::npos) << why;
+	RunResult next = res;
+	next.loopDecisions.clear();
+	next.poses.assign(4, mrpt::poses::CPose3D(9, 9, 9, 0, 0, 0));
+	try
+	{
+		io::writeRunOutputs(dir.path().string(), next, info, &spool);
+		ADD_FAILURE() << "a spool that lost lines was copied into loops.txt";
+	}
+	catch (const std::exception& e)
+	{
+		EXPECT_NE(std::string(e.what()).find("loops.txt"), std::string::npos) << e.what();
+		EXPECT_NE(std::string(e.what()).find(std::strerror(ENOSPC)), std::string::npos) << e.what();
+	}
+	EXPECT_EQ(read("trajectory.tum"), trajectoryBefore);
+	EXPECT_EQ(read("loops.txt"), loopsBefore);
+	for (const auto& e : fs::directory_iterator(dir.path()))
+		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+	// What rasterslam run does then: the other outputs, without loops.txt (none of this run).
+	io::writeRunOutputs(dir.path().string(), next, info, nullptr);
+	EXPECT_NE(read("trajectory.tum"), trajectoryBefore);
+	EXPECT_FALSE(fs::exists(dir / "loops.txt"));
+}
+
+TEST(RunOutputs, TheSpoolIsAnUnnamedFileInTheFolderAsked)
+{
+	// TMPDIR or a folder given: glibc's tmpfile() would use /tmp whatever TMPDIR says.
+	const test::ScopedTempDir dir("run-outputs-spool-dir");
+	{
+		io::LoopDecisionSpool spool(dir.path().string());
+		LoopDecision l;
+		l.inliers = 17;
+		spool.append({l, l});
+		EXPECT_TRUE(fs::is_empty(dir.path()));  // no name left behind, even while it is open
+		EXPECT_EQ(spool.finish(), "");
+		std::string out;
+		spool.copyTo(out, [] {});
+		std::string line;
+		io::appendLoopLine(line, l);
+		EXPECT_EQ(out, line + line);
+	}
+	try
+	{
+		io::LoopDecisionSpool none((dir / "no-such-folder").string());
+		ADD_FAILURE() << "a spool in a folder that does not exist";
+	}
+	catch (const std::runtime_error& e)
+	{
+		EXPECT_NE(std::string(e.what()).find("no-such-folder"), std::string::npos) << e.what();
+	}
 }

@@ -357,6 +357,19 @@ int runCommand(const RunArgs& args)
 		runError = res.error;
 	if (runError.empty() && !imageError.empty())
 		runError = imageError;
+	// A spool that lost lines (a full disk) costs loops.txt, not the run's other outputs.
+	bool loopsLost = false;
+	if (loopSpool)
+	{
+		if (auto why = loopSpool->finish(); !why.empty())
+		{
+			loopsLost = true;
+			if (runError.empty())
+				runError = why + "; loops.txt is not written";
+			else
+				std::cerr << "rasterslam: error: " << why << "; loops.txt is not written\n";
+		}
+	}
 
 	// Summary figures.
 	std::vector<double> total, odo, ras, rd;
@@ -391,6 +404,7 @@ int runCommand(const RunArgs& args)
 	counts["late"] = static_cast<uint64_t>(res.late);
 	counts["dropped_late"] = static_cast<uint64_t>(res.droppedLate);
 	counts["stamps_out_of_order"] = static_cast<uint64_t>(res.stampsOutOfOrder);
+	counts["loop_decisions"] = static_cast<uint64_t>(res.loopDecisionsMade);
 	counts["loop_edges"] = static_cast<uint64_t>(res.loopEdges);
 	counts["rawlog_odometry_edges"] = static_cast<uint64_t>(res.odometryEdges);
 	counts["relocalized"] = static_cast<uint64_t>(res.relocalized);
@@ -500,7 +514,7 @@ int runCommand(const RunArgs& args)
 	{
 		if (!res.scans.empty())
 		{
-			io::writeRunOutputs(outDir, res, info, loopSpool.get());
+			io::writeRunOutputs(outDir, res, info, loopsLost ? nullptr : loopSpool.get());
 			wrote = true;
 		}
 	}

@@ -299,8 +299,9 @@ void Backend::returnFreedMemory()
 void Backend::process(KeyframeJob& job)
 {
 	StageTimes t;
-	std::lock_guard<std::mutex> mapLock(mapMutex_);
+	std::unique_lock<std::mutex> mapLock(mapMutex_);
 	std::vector<uint8_t> placeQuery;
+	std::vector<LoopDecision> handOver;
 	if (mapManager_)
 	{
 		const auto t0 = Clock::now();
@@ -388,9 +389,8 @@ void Backend::process(KeyframeJob& job)
 		}
 		if (s_.onLoopDecisions)
 		{
-			auto d = loopDetector_->takeDecisions();
-			res_.loopDecisionsMade += d.size();
-			s_.onLoopDecisions(std::move(d));
+			handOver = loopDetector_->takeDecisions();
+			res_.loopDecisionsMade += handOver.size();
 		}
 		// Outside the graph lock: this may write a local map to the offline store, and the
 		// tracking takes that lock every scan.
@@ -408,6 +408,15 @@ void Backend::process(KeyframeJob& job)
 			optimizeNow();
 		}
 		t.loop = msSince(t0);
+	}
+	// Handed over once the map is free: the receiver writes to a file, and the tracking
+	// thread waits for this lock to relocalize.
+	mapLock.unlock();
+	if (!handOver.empty())
+	{
+		const auto t0 = Clock::now();
+		s_.onLoopDecisions(std::move(handOver));
+		t.loop += msSince(t0);
 	}
 	times_.emplace_back(job.record, t);
 }

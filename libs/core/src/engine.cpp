@@ -953,7 +953,10 @@ void Engine::finishRun(RunState& s)
 		auto d = loopDetector_->takeDecisions();
 		res.loopDecisionsMade += d.size();
 		if (s.opts.onLoopDecisions)
-			s.opts.onLoopDecisions(std::move(d));
+		{
+			if (!d.empty())
+				s.opts.onLoopDecisions(std::move(d));
+		}
 		else
 			res.loopDecisions = std::move(d);
 	}

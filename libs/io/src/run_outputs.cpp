@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -44,11 +45,35 @@ void appendLoopLine(std::string& buf, const LoopDecision& l)
 	                    q.z(), q.quat().x(), q.quat().y(), q.quat().z(), q.quat().r());
 }
 
-LoopDecisionSpool::LoopDecisionSpool() : f_(std::tmpfile())
+LoopDecisionSpool::LoopDecisionSpool(const std::string& dir)
+{
+	// Not std::tmpfile(): glibc's ignores TMPDIR, and /tmp is often a RAM disk.
+	std::string folder = dir;
+	if (folder.empty())
+		if (const char* t = std::getenv("TMPDIR"); t && *t)
+			folder = t;
+	if (folder.empty())
+		folder = "/tmp";
+	std::string name = (fs::path(folder) / "rasterslam-loops-XXXXXX").string();
+	const int fd = ::mkstemp(name.data());
+	if (fd < 0)
+		throw std::runtime_error("no temporary file for the loop decisions in '" + folder +
+		                         "': " + std::strerror(errno));
+	::unlink(name.c_str());  // unnamed from now on: gone when closed, however the run ends
+	f_ = ::fdopen(fd, "w+");
+	if (!f_)
+	{
+		const int e = errno;
+		::close(fd);
+		throw std::runtime_error("no temporary file for the loop decisions in '" + folder +
+		                         "': " + std::strerror(e));
+	}
+}
+
+LoopDecisionSpool::LoopDecisionSpool(std::FILE* f) : f_(f)
 {
 	if (!f_)
-		throw std::runtime_error(std::string("no temporary file for the loop decisions: ") +
-		                         std::strerror(errno));
+		throw std::invalid_argument("LoopDecisionSpool: no file");
 }
 
 LoopDecisionSpool::~LoopDecisionSpool()
@@ -64,15 +89,33 @@ void LoopDecisionSpool::append(const std::vector<LoopDecision>& decisions)
 	std::string buf;
 	for (const auto& l : decisions)
 		appendLoopLine(buf, l);
-	failed_ = std::fwrite(buf.data(), 1, buf.size(), f_) != buf.size();
+	if (std::fwrite(buf.data(), 1, buf.size(), f_) != buf.size())
+	{
+		failed_ = true;
+		errno_ = errno;
+	}
 	lines_ += decisions.size();
+}
+
+std::string LoopDecisionSpool::finish()
+{
+	if (!failed_ && std::fflush(f_) != 0)
+	{
+		failed_ = true;
+		errno_ = errno;
+	}
+	if (!failed_)
+		return {};
+	return "the loop decisions could not be kept in a temporary file (" +
+	       std::string(errno_ != 0 ? std::strerror(errno_) : "write failed") + ")";
 }
 
 void LoopDecisionSpool::copyTo(std::string& buf, const std::function<void()>& flush) const
 {
 	if (failed_ || std::fflush(f_) != 0 || std::fseek(f_, 0, SEEK_SET) != 0)
-		throw std::runtime_error(
-		    "the loop decisions could not be kept in a temporary file (disk full?)");
+		throw std::runtime_error("the loop decisions could not be kept in a temporary file (" +
+		                         std::string(errno_ != 0 ? std::strerror(errno_) : "disk full?") +
+		                         ")");
 	char chunk[64 * 1024];
 	std::size_t n = 0;
 	while ((n = std::fread(chunk, 1, sizeof(chunk), f_)) > 0)
@@ -208,6 +251,12 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 			cleanup();  // a producer that throws leaves no temporary behind
 			throw std::runtime_error("error writing '" + (d / name).string() + "': " + e.what() +
 			                         "; the previous outputs are kept");
+		}
+		catch (...)
+		{
+			f.close();
+			cleanup();
+			throw;
 		}
 		write();
 		if (!ok || !f.flush())

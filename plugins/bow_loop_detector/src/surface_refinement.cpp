@@ -3,6 +3,8 @@
 // seen from another side they are other points of the object, which biases the fit (about
 // 0.2 m along the road on the KITTI street driven the other way). The scans' surfaces do not
 // depend on the side they are seen from.
+#include <mrpt/system/crc.h>
+
 #include <chrono>
 
 #include "bow_loop_detector.h"
@@ -35,9 +37,10 @@ bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surfac
 		targets_ = std::make_unique<features::IcpTargetCache>(4, icp_);
 	// The fingerprint covers the whole surface: a local map still being added to, or another
 	// map's local map under the same id, is another target.
-	uint64_t fingerprint = 1469598103934665603ull ^ static_cast<uint64_t>(lm.surfaceCm.size());
-	for (const int16_t v : lm.surfaceCm)
-		fingerprint = (fingerprint ^ static_cast<uint16_t>(v)) * 1099511628211ull;
+	const uint64_t fingerprint =
+	    (static_cast<uint64_t>(lm.surfaceCm.size()) << 32) |
+	    mrpt::system::compute_CRC32(reinterpret_cast<const uint8_t*>(lm.surfaceCm.data()),
+	                                lm.surfaceCm.size() * sizeof(int16_t));
 	const auto tgt = targets_->get(lm.id, fingerprint, [&lm] { return surfaceOf(lm); });
 	const auto t1 = std::chrono::steady_clock::now();
 	const auto r = features::icpPointToPlane(surface, *tgt, T, icp_);

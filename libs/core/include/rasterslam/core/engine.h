@@ -58,9 +58,10 @@ struct RunOptions
 	bool relocalizeFirstScan = false;
 	/** Called after every processed scan. */
 	std::function<void(const ScanRecord&, double progress)> onScan;
-	/** When set, the loop detector's decisions are handed over after every keyframe, on the
-	 *  back end's thread, instead of being kept in RunResult::loopDecisions: a lifelong run
-	 *  keeps none of them in memory (rasterslam run writes them to a temporary file). */
+	/** When set, the loop detector's decisions are handed over after every keyframe that made
+	 *  some, on the back end's thread and with the map unlocked, and those left at the end
+	 *  once more, instead of being kept in RunResult::loopDecisions: a lifelong run keeps
+	 *  none of them in memory (rasterslam run writes them to a temporary file). */
 	std::function<void(std::vector<LoopDecision>&&)> onLoopDecisions;
 	/** Called with every rasterized image (e.g. to save it), when a rasterizer is set. */
 	std::function<void(const Scan&, const RasterFrame&)> onRaster;

@@ -21,15 +21,22 @@ using rasterslam::toIsometry;  // Eigen isometry of an MRPT pose (core/pose_conv
 class LoopDecisionSpool
 {
    public:
-	/** Throws when no temporary file can be made. */
-	LoopDecisionSpool();
+	/** An unnamed temporary file in `dir`, or else in $TMPDIR, or else in /tmp (the system
+	 *  removes it however the process ends). Throws, naming the folder, when none can be made. */
+	explicit LoopDecisionSpool(const std::string& dir = {});
+	/** Spools to `f`, opened for reading and writing, and closes it at the end. */
+	explicit LoopDecisionSpool(std::FILE* f);
 	~LoopDecisionSpool();
 	LoopDecisionSpool(const LoopDecisionSpool&) = delete;
 	LoopDecisionSpool& operator=(const LoopDecisionSpool&) = delete;
 	/** Appends their loops.txt lines. A write error is kept, not thrown (this runs on the back
-	 *  end's thread): copyTo() throws it. */
+	 *  end's thread): finish() reports it and copyTo() throws it. */
 	void append(const std::vector<LoopDecision>& decisions);
 	std::size_t size() const { return lines_; }  //!< decisions appended
+	/** Flushes what is buffered. Returns why the spool lost lines (a failed write, with the
+	 *  system's reason) or an empty string when every line is kept. Call it once the back end has
+	 *  stopped, before copyTo(): a caller can then still write the run's other outputs. */
+	std::string finish();
 	/** Every line appended so far, in order, added to `buf` in chunks (`flush` after each). */
 	void copyTo(std::string& buf, const std::function<void()>& flush) const;
 
@@ -37,6 +44,7 @@ class LoopDecisionSpool
 	std::FILE* f_ = nullptr;
 	std::size_t lines_ = 0;
 	bool failed_ = false;
+	int errno_ = 0;  //!< the system's reason for the first failed write
 };
 
 /** A loop decision as its loops.txt line (newline included). */
