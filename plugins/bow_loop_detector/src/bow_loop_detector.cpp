@@ -41,6 +41,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
 	canonicalYaw_ = p.getBool("canonical_yaw", canonicalYaw_);
 	directLevels_ = p.getInt("direct_index_levels_up", directLevels_);
+	stopAtInliers_ = p.getInt("stop_at_inliers", stopAtInliers_);
 	guidedRadius_m_ = p.getDouble("guided_radius_m", guidedRadius_m_);
 	guidedGate_m_ = p.getDouble("guided_gate_m", guidedGate_m_);
 	guidedGate_deg_ = p.getDouble("guided_gate_deg", guidedGate_deg_);
@@ -61,6 +62,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(excludeRecent_s_, 0, "exclude_recent_s");
 	p.requireAtLeast(minScore_, 0, "min_score");  // normalized: may exceed 1
 	p.requireAtLeast(maxCandidates_, 1, "max_candidates");
+	p.requireAtLeast(stopAtInliers_, 0, "stop_at_inliers");     // 0: verify every candidate
 	p.requireRange(match_.maxDistance, 0, 256, "max_hamming");  // ORB: 256-bit descriptors
 	p.require(match_.ratio > 0 && match_.ratio <= 1, match_.ratio, "ratio",
 	          "must be in (0, 1] (1 disables the test)");
@@ -463,6 +465,11 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			d.reason = !fit.ok ? "inliers" : (d.score < minScore_ ? "score" : "ok");
 			consider(d, fit, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision,
 			         keyframes);
+			// A loop this strong is taken as it is: the candidates ranked below it are not
+			// verified (most fail, at the cost of a full descriptor match each).
+			if (stopAtInliers_ > 0 && best &&
+			    best->inliers >= static_cast<std::size_t>(stopAtInliers_))
+				break;
 		}
 		if (imageQuery)
 			prevBow_.reset();  // the words of an image, not of a keyframe

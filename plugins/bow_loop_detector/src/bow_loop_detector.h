@@ -176,6 +176,7 @@ class BowLoopDetector : public LoopDetector
 	features::OrbParams queryOrb_;
 	double excludeRecent_s_ = 30, minScore_ = 0.3;
 	int maxCandidates_ = 5, maxResults_ = 20;
+	int stopAtInliers_ = 0;  //!< an accepted candidate with this many inliers ends the search
 	features::MatchParams match_;
 	features::RansacParams ransac_;
 	/** Inliers a relocalization (no pose prior) needs: fewer than a loop's, because one hit
