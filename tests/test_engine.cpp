@@ -1,11 +1,13 @@
 // The engine with in-process plugins: keyframes and the pose for every scan, the input's own
 // odometry as extra graph edges, and the pose-graph optimizer on a graph with a known solution.
 #include <mrpt/core/initializer.h>
+#include <mrpt/math/wrap2pi.h>
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/heap.h>
 #include <rasterslam/core/plugin_loader.h>
 
 #include <deque>
+#include <filesystem>
 #ifdef __GLIBC__
 #include <malloc.h>
 #endif
@@ -245,6 +247,72 @@ TEST(Engine, KeyframesAndAPoseForEveryScan)
 	// A non-keyframe scan is placed relative to its keyframe.
 	EXPECT_EQ(res.scans[5].kfNode, 1u);
 	EXPECT_NEAR(res.scans[5].T_kf_scan.x, 1 + std::cos(0.1), 1e-9);
+}
+
+TEST(Engine, SpooledScanRecordsGiveTheSameRun)
+{
+	// 700 scans: the records cross several writes to the temporary file.
+	const auto cfg = yaml::FromText(
+	    "odometry: {class: rasterslam::test::FixedStepOdometry, params: "
+	    "{every: 3, dx: 1.0, dyaw: 0.01}}\n");
+	Engine a(cfg, "t.yaml");
+	VectorSource srcA(makeScans(700, false, CPose3D()));
+	const auto inMemory = a.run(srcA, {});
+	// Scan k is k steps of (1 m, 0.01 rad): on a circle. Composing the steps through each
+	// keyframe's rotation and its transpose once let rounding grow to NaN by scan 87.
+	ASSERT_EQ(inMemory.poses.size(), 700u);
+	for (std::size_t k : {87, 300, 699})
+	{
+		double x = 0, y = 0;
+		for (std::size_t j = 0; j < k; j++)
+		{
+			x += std::cos(0.01 * static_cast<double>(j));
+			y += std::sin(0.01 * static_cast<double>(j));
+		}
+		EXPECT_NEAR(inMemory.poses[k].x(), x, 1e-6) << k;
+		EXPECT_NEAR(inMemory.poses[k].y(), y, 1e-6) << k;
+		EXPECT_NEAR(mrpt::math::wrapToPi(inMemory.poses[k].yaw() - 0.01 * static_cast<double>(k)),
+		            0, 1e-9)
+		    << k;
+	}
+
+	const test::ScopedTempDir dir("engine-scan-spool");
+	Engine b(cfg, "t.yaml");
+	VectorSource srcB(makeScans(700, false, CPose3D()));
+	RunOptions o;
+	o.spoolScans = true;
+	o.scanSpoolDir = dir.path().string();
+	std::size_t seen = 0;
+	o.onScan = [&](const ScanRecord& r, double)
+	{
+		EXPECT_EQ(r.index, seen);
+		++seen;
+	};
+	const auto spooled = b.run(srcB, o);
+	EXPECT_TRUE(spooled.scans.isSpooled());
+	EXPECT_FALSE(inMemory.scans.isSpooled());
+	EXPECT_EQ(spooled.error, "");
+	EXPECT_EQ(seen, 700u);
+	EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+	ASSERT_EQ(spooled.scans.size(), 700u);
+	ASSERT_EQ(spooled.poses.size(), inMemory.poses.size());
+	for (std::size_t k = 0; k < 700; k += 13)
+	{
+		EXPECT_EQ(spooled.poses[k], inMemory.poses[k]) << k;
+		EXPECT_EQ(spooled.scans[k].kfNode, inMemory.scans[k].kfNode) << k;
+		EXPECT_EQ(spooled.scans[k].keyframe, k % 3 == 0) << k;
+	}
+
+	// No temporary file can be made: the records stay in memory and the run is the same.
+	Engine c(cfg, "t.yaml");
+	VectorSource srcC(makeScans(700, false, CPose3D()));
+	o.scanSpoolDir = (dir / "no-such-folder").string();
+	o.onScan = nullptr;
+	const auto fallback = c.run(srcC, o);
+	EXPECT_FALSE(fallback.scans.isSpooled());
+	EXPECT_EQ(fallback.error, "");
+	ASSERT_EQ(fallback.poses.size(), 700u);
+	EXPECT_EQ(fallback.poses.back(), inMemory.poses.back());
 }
 
 TEST(Engine, FirstLastSelectInputIndices)

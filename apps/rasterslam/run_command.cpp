@@ -342,6 +342,8 @@ int runCommand(const RunArgs& args)
 	{
 		std::cerr << "rasterslam: warning: " << e.what() << "; loop decisions kept in memory\n";
 	}
+	// The per-scan records too (264 bytes a scan, read back at the end for the outputs).
+	opts.spoolScans = true;
 	std::string runError;
 	opts.stop = &gStopSignal;
 	try
@@ -372,14 +374,21 @@ int runCommand(const RunArgs& args)
 	}
 
 	// Summary figures.
+	// The records are read back from their temporary file; one that lost some (a full disk)
+	// has given its reason in res.error, and no trajectory.
+	const bool recordsKept = res.scans.error().empty() && res.poses.size() == res.scans.size();
 	std::vector<double> total, odo, ras, rd;
-	for (const auto& r : res.scans)
-	{
-		total.push_back(r.ms.total);
-		odo.push_back(r.ms.odometry);
-		ras.push_back(r.ms.rasterize);
-		rd.push_back(r.ms.read);
-	}
+	bool allGt = recordsKept && !res.scans.empty();
+	if (recordsKept)
+		res.scans.forEach(
+		    [&](const ScanRecord& r)
+		    {
+			    total.push_back(r.ms.total);
+			    odo.push_back(r.ms.odometry);
+			    ras.push_back(r.ms.rasterize);
+			    rd.push_back(r.ms.read);
+			    allGt = allGt && r.groundTruth.has_value();
+		    });
 	double pathLen = 0;
 	for (std::size_t i = 1; i < res.poses.size(); i++)
 		pathLen += (res.poses[i].translation() - res.poses[i - 1].translation()).norm();
@@ -456,16 +465,16 @@ int runCommand(const RunArgs& args)
 	}
 	summary["path_length_m"] = pathLen;
 	std::optional<double> ate, gtPathLen;
-	if (!res.scans.empty() && std::all_of(res.scans.begin(), res.scans.end(),
-	                                      [](const auto& r) { return r.groundTruth.has_value(); }))
+	if (allGt)
 	{
 		io::Trajectory gt, est;
-		for (std::size_t i = 0; i < res.scans.size(); i++)
-		{
-			gt.push_back({res.scans[i].stamp,
-			              io::toIsometry(mrpt::poses::CPose3D(*res.scans[i].groundTruth))});
-			est.push_back({res.scans[i].stamp, io::toIsometry(res.poses[i])});
-		}
+		std::size_t i = 0;
+		res.scans.forEach(
+		    [&](const ScanRecord& r)
+		    {
+			    gt.push_back({r.stamp, io::toIsometry(mrpt::poses::CPose3D(*r.groundTruth))});
+			    est.push_back({r.stamp, io::toIsometry(res.poses[i++])});
+		    });
 		const auto a = eval::associate(gt, est, true);
 		ate = eval::computeAte(gt, est, a).rmse_m;
 		summary["ate_rmse_m"] = *ate;

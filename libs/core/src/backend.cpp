@@ -387,11 +387,6 @@ void Backend::process(KeyframeJob& job)
 			++res_.loopEdges;
 			optimizationPending_ = true;
 		}
-		if (s_.onLoopDecisions)
-		{
-			handOver = loopDetector_->takeDecisions();
-			res_.loopDecisionsMade += handOver.size();
-		}
 		// Outside the graph lock: this may write a local map to the offline store, and the
 		// tracking takes that lock every scan.
 		for (const auto& [from, to] : accepted)
@@ -406,6 +401,13 @@ void Backend::process(KeyframeJob& job)
 			optimizationPending_ = false;
 			kfSinceOptimization_ = 0;
 			optimizeNow();
+		}
+		// Taken last: if anything above throws, they stay with the loop detector and the
+		// engine hands them over at the end of the run, counted once.
+		if (s_.onLoopDecisions)
+		{
+			handOver = loopDetector_->takeDecisions();
+			res_.loopDecisionsMade += handOver.size();
 		}
 		t.loop = msSince(t0);
 	}

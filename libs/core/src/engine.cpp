@@ -370,6 +370,17 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 	bs.testCorruptLoops = testCorruptLoops_;
 	bs.onLoopDecisions = opts.onLoopDecisions;
 	RunState s(*this, source, opts, bs);
+	if (opts.spoolScans)
+	{
+		try
+		{
+			s.res.scans = ScanLog::spooled(opts.scanSpoolDir);
+		}
+		catch (const std::exception& e)
+		{
+			MRPT_LOG_WARN_STREAM(e.what() << "; the scan records are kept in memory");
+		}
+	}
 	s.res.graph.clear();
 	// Keyframe ids continue those of a loaded map: unique across its sessions.
 	s.nextNode = mapManager_ ? mapManager_->map().nextKeyframeId() : 0;
@@ -918,12 +929,16 @@ void Engine::recordScan(RunState& s, ScanRecord& rec, Clock::time_point tScan)
 	rec.onlinePose = s.currPose.asTPose();
 	// Exactly the identity on a keyframe: composing a rotation with its own inverse would feed
 	// rounding back into every following scan.
-	s.T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : T_kf_scan;
+	// Otherwise rebuilt from its angles: the next scan's pose is this one composed with the
+	// keyframe's rotation and its transpose, so a rotation matrix that is not quite orthonormal
+	// would grow that error by the scans' count at every keyframe (with an odometry that gives
+	// only T_prev_curr, 3 scans a keyframe reached NaN after 29 keyframes).
+	s.T_kf_prev = rec.keyframe ? mrpt::poses::CPose3D() : mrpt::poses::CPose3D(rec.T_kf_scan);
 	rec.ms.total = msSince(tScan) + s.readMs;
 	rec.rssMb = static_cast<float>(currentRssMb());
 	s.res.scans.push_back(rec);
 	if (s.opts.onScan)
-		s.opts.onScan(s.res.scans.back(), s.source.progress());
+		s.opts.onScan(rec, s.source.progress());
 }
 
 void Engine::finishRun(RunState& s)
@@ -941,12 +956,27 @@ void Engine::finishRun(RunState& s)
 	}
 	if (res.error.empty() && !s.backend.error().empty())
 		res.error = "mapping or loop closing: " + s.backend.error();
-	for (const auto& [record, t] : s.backend.timings())
-		if (record < res.scans.size())
-		{
-			res.scans[record].ms.mapping += t.mapping;
-			res.scans[record].ms.loop += t.loop;
-		}
+	bool recordsKept = res.scans.error().empty();
+	if (!recordsKept && res.error.empty())
+		res.error = res.scans.error();
+	try
+	{
+		if (recordsKept)
+			for (const auto& [record, t] : s.backend.timings())
+				if (record < res.scans.size())
+					res.scans.modify(record,
+					                 [&t = t](ScanRecord& r)
+					                 {
+						                 r.ms.mapping += t.mapping;
+						                 r.ms.loop += t.loop;
+					                 });
+	}
+	catch (const std::exception& e)
+	{
+		recordsKept = false;
+		if (res.error.empty())
+			res.error = e.what();
+	}
 	if (loopDetector_)
 	{
 		// Moved, not copied: at the end of a long run they are the biggest record kept.
@@ -971,9 +1001,25 @@ void Engine::finishRun(RunState& s)
 		                                                   << graph.edges.size() << " edges");
 		res.optimizer = optimizer_->optimize(graph, res.uncertainEdges, s.backend.fixedNodes());
 	}
-	res.poses.reserve(res.scans.size());
-	for (const auto& r : res.scans)
-		res.poses.push_back(graph.nodes.at(r.kfNode) + mrpt::poses::CPose3D(r.T_kf_scan));
+	// Without every record there is no trajectory to give: res.error says why.
+	try
+	{
+		if (recordsKept)
+		{
+			res.poses.reserve(res.scans.size());
+			res.scans.forEach(
+			    [&](const ScanRecord& r) {
+				    res.poses.push_back(graph.nodes.at(r.kfNode) +
+				                        mrpt::poses::CPose3D(r.T_kf_scan));
+			    });
+		}
+	}
+	catch (const std::exception& e)
+	{
+		res.poses.clear();
+		if (res.error.empty())
+			res.error = e.what();
+	}
 	res.wall_s = std::chrono::duration<double>(Clock::now() - s.wall0).count();
 }
 

@@ -1,6 +1,7 @@
 #include <mrpt/core/format.h>
 #include <mrpt/poses/CPose3DQuat.h>
 #include <rasterslam/core/config.h>
+#include <rasterslam/core/scan_log.h>
 #include <rasterslam/io/run_outputs.h>
 #include <rasterslam/io/trajectory_io.h>
 #include <unistd.h>
@@ -47,26 +48,14 @@ void appendLoopLine(std::string& buf, const LoopDecision& l)
 
 LoopDecisionSpool::LoopDecisionSpool(const std::string& dir)
 {
-	// Not std::tmpfile(): glibc's ignores TMPDIR, and /tmp is often a RAM disk.
-	std::string folder = dir;
-	if (folder.empty())
-		if (const char* t = std::getenv("TMPDIR"); t && *t)
-			folder = t;
-	if (folder.empty())
-		folder = "/tmp";
-	std::string name = (fs::path(folder) / "rasterslam-loops-XXXXXX").string();
-	const int fd = ::mkstemp(name.data());
-	if (fd < 0)
-		throw std::runtime_error("no temporary file for the loop decisions in '" + folder +
-		                         "': " + std::strerror(errno));
-	::unlink(name.c_str());  // unnamed from now on: gone when closed, however the run ends
+	const int fd = openUnnamedTempFile(dir, "the loop decisions");
 	f_ = ::fdopen(fd, "w+");
 	if (!f_)
 	{
 		const int e = errno;
 		::close(fd);
-		throw std::runtime_error("no temporary file for the loop decisions in '" + folder +
-		                         "': " + std::strerror(e));
+		throw std::runtime_error("no temporary file for the loop decisions: " +
+		                         std::string(std::strerror(e)));
 	}
 }
 
@@ -141,33 +130,43 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 	// files) was built in memory before, 22 MB at the end of a 10,000-scan run, its peak.
 	using Producer = std::function<void(std::string & buf, const std::function<void()>& flush)>;
 	std::vector<std::pair<std::string, Producer>> files;
-	const auto& scans = res.scans;
-	const bool allGt = !scans.empty() &&
-	                   std::all_of(scans.begin(), scans.end(),
-	                               [](const ScanRecord& r) { return r.groundTruth.has_value(); });
-	// A trajectory file, a line a scan: `poseOf(i)` gives scan i's pose.
-	auto trajectory = [&](bool tum, std::function<Eigen::Isometry3d(std::size_t)> poseOf)
+	const auto& scans = res.scans;  // in memory, or read back from its temporary file
+	if (!scans.error().empty())
+		throw std::runtime_error(scans.error() + "; no output is written");
+	if (res.poses.size() != scans.size())
+		throw std::runtime_error("the run has " + std::to_string(scans.size()) +
+		                         " scan records but " + std::to_string(res.poses.size()) +
+		                         " poses; no output is written");
+	bool allGt = !scans.empty();
+	scans.forEach([&allGt](const ScanRecord& r) { allGt = allGt && r.groundTruth.has_value(); });
+	// A trajectory file, a line a scan: `poseOf(i, record)` gives scan i's pose.
+	using PoseOf = std::function<Eigen::Isometry3d(std::size_t, const ScanRecord&)>;
+	auto trajectory = [&](bool tum, PoseOf poseOf)
 	{
 		return [&scans, tum, poseOf](std::string& buf, const std::function<void()>& flush)
 		{
 			if (tum)
 				buf += kTumHeader;
-			for (std::size_t i = 0; i < scans.size(); i++)
-			{
-				if (tum)
-					appendTumLine(buf, {scans[i].stamp, poseOf(i)});
-				else
-					appendKittiLine(buf, poseOf(i));
-				flush();
-			}
+			std::size_t i = 0;
+			scans.forEach(
+			    [&](const ScanRecord& r)
+			    {
+				    if (tum)
+					    appendTumLine(buf, {r.stamp, poseOf(i, r)});
+				    else
+					    appendKittiLine(buf, poseOf(i, r));
+				    ++i;
+				    flush();
+			    });
 		};
 	};
-	const auto estimated = [&res](std::size_t i) { return toIsometry(res.poses.at(i)); };
+	const auto estimated = [&res](std::size_t i, const ScanRecord&)
+	{ return toIsometry(res.poses.at(i)); };
 	// What a robot would have acted on: each scan's pose when it was processed.
-	const auto onlinePose = [&scans](std::size_t i)
-	{ return toIsometry(mrpt::poses::CPose3D(scans[i].onlinePose)); };
-	const auto truth = [&scans](std::size_t i)
-	{ return toIsometry(mrpt::poses::CPose3D(*scans[i].groundTruth)); };
+	const auto onlinePose = [](std::size_t, const ScanRecord& r)
+	{ return toIsometry(mrpt::poses::CPose3D(r.onlinePose)); };
+	const auto truth = [](std::size_t, const ScanRecord& r)
+	{ return toIsometry(mrpt::poses::CPose3D(*r.groundTruth)); };
 	files.emplace_back("trajectory.tum", trajectory(true, estimated));
 	files.emplace_back("trajectory.kitti", trajectory(false, estimated));
 	files.emplace_back("trajectory_online.tum", trajectory(true, onlinePose));
@@ -183,15 +182,16 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 		    buf +=
 		        "index,stamp,points,status,inliers,keyframe,late,read_ms,rasterize_ms,odometry_ms,"
 		        "mapping_ms,loop_ms,total_ms,rss_mb\n";
-		    for (const auto& r : scans)
-		    {
-			    buf +=
-			        mrpt::format("%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f\n",
-			                     r.index, r.stamp, r.numPoints, toString(r.status), r.inliers,
-			                     r.keyframe ? 1 : 0, r.late ? 1 : 0, r.ms.read, r.ms.rasterize,
-			                     r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total, r.rssMb);
-			    flush();
-		    }
+		    scans.forEach(
+		        [&](const ScanRecord& r)
+		        {
+			        buf += mrpt::format(
+			            "%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f\n", r.index,
+			            r.stamp, r.numPoints, toString(r.status), r.inliers, r.keyframe ? 1 : 0,
+			            r.late ? 1 : 0, r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping,
+			            r.ms.loop, r.ms.total, r.rssMb);
+			        flush();
+		        });
 	    });
 	if (!res.loopDecisions.empty() || (spooledLoops && spooledLoops->size() > 0))
 		files.emplace_back(

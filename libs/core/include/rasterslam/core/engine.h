@@ -4,6 +4,7 @@
 #include <mrpt/graphs/CNetworkOfPoses.h>
 #include <mrpt/system/COutputLogger.h>
 #include <rasterslam/core/plugin.h>
+#include <rasterslam/core/scan_log.h>
 #include <rasterslam/core/scan_source.h>
 #include <rasterslam/core/sweep.h>
 
@@ -16,33 +17,6 @@
 
 namespace rasterslam
 {
-/** Milliseconds spent in each stage for one scan. */
-struct StageTimes
-{
-	double read = 0, rasterize = 0, odometry = 0, mapping = 0, loop = 0, total = 0;
-};
-
-/** What the engine knows of every input scan. */
-struct ScanRecord
-{
-	std::size_t index = 0;
-	double stamp = 0;
-	std::size_t numPoints = 0;
-	TrackingStatus status = TrackingStatus::Initializing;
-	std::size_t inliers = 0;
-	bool keyframe = false;
-	bool late = false;                 //!< --realtime: started after its due time
-	mrpt::graphs::TNodeID kfNode = 0;  //!< keyframe the scan is attached to
-	// Poses as plain TPose3D (48 bytes, against 136 for a CPose3D with its cached rotation):
-	// a record is kept for every scan of a run, hours of them in a lifelong one.
-	mrpt::math::TPose3D T_kf_scan;  //!< its pose in the frame of that keyframe
-	/** The pose the scan had when it was processed (what a robot would have acted on). */
-	mrpt::math::TPose3D onlinePose;
-	StageTimes ms;
-	float rssMb = 0;  //!< resident memory of the process after the scan, MB
-	std::optional<mrpt::math::TPose3D> groundTruth;
-};
-
 struct RunOptions
 {
 	/** Only scans with first <= index <= last (input indices, 0-based). */
@@ -58,6 +32,11 @@ struct RunOptions
 	bool relocalizeFirstScan = false;
 	/** Called after every processed scan. */
 	std::function<void(const ScanRecord&, double progress)> onScan;
+	/** Keep RunResult::scans in an unnamed temporary file (ScanLog::spooled) in `scanSpoolDir`
+	 *  (empty: $TMPDIR, else /tmp) rather than in memory: a lifelong run then holds nothing a
+	 *  scan. When no such file can be made the records stay in memory, with a warning. */
+	bool spoolScans = false;
+	std::string scanSpoolDir;
 	/** When set, the loop detector's decisions are handed over after every keyframe that made
 	 *  some, on the back end's thread and with the map unlocked, and those left at the end
 	 *  once more, instead of being kept in RunResult::loopDecisions: a lifelong run keeps
@@ -73,7 +52,9 @@ struct RunOptions
 
 struct RunResult
 {
-	std::vector<ScanRecord> scans;
+	/** Every processed scan's record (in a temporary file with RunOptions::spoolScans; if
+	 *  writing it failed, scans.error() says why and `error` says so too). */
+	ScanLog scans;
 	/** Pose of every processed scan in the map frame (keyframe pose + T_kf_scan). */
 	std::vector<mrpt::poses::CPose3D> poses;
 	mrpt::graphs::CNetworkOfPoses3DInf graph;
