@@ -1,7 +1,9 @@
 // Trajectory files (TUM, KITTI), KITTI calibration and times, atomic writes, a run's outputs.
+#include <fcntl.h>
 #include <rasterslam/core/pose_conversions.h>
 #include <rasterslam/io/run_outputs.h>
 #include <rasterslam/io/trajectory_io.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
@@ -435,4 +437,59 @@ TEST(RunOutputs, TheSpoolIsAnUnnamedFileInTheFolderAsked)
 	{
 		EXPECT_NE(std::string(e.what()).find("no-such-folder"), std::string::npos) << e.what();
 	}
+}
+
+TEST(RunOutputs, LostScanRecordsCostThePerScanFilesOnly)
+{
+	// The scan records' temporary file could not be written (a full disk): the run has no
+	// trajectory to give, but loops.txt, the pose graph and run.yaml (with the reason) are
+	// still written, and the per-scan files of an earlier run are removed, not left to be
+	// taken for this run's.
+	if (!fs::exists("/dev/full"))
+		GTEST_SKIP() << "no /dev/full on this system";
+	const test::ScopedTempDir dir("run-outputs-lost-records");
+	const mrpt::containers::yaml info = mrpt::containers::yaml::Map();
+	{
+		RunResult earlier;
+		ScanRecord r;
+		earlier.scans.push_back(r);
+		earlier.poses.emplace_back();
+		io::writeRunOutputs(dir.path().string(), earlier, info);
+	}
+	ASSERT_TRUE(fs::exists(dir / "trajectory.tum"));
+	ASSERT_TRUE(fs::exists(dir / "timings.csv"));
+
+	const int fd = ::open("/dev/full", O_RDWR);
+	ASSERT_GE(fd, 0) << std::strerror(errno);
+	RunResult res;
+	res.scans = ScanLog::onDescriptor(fd);  // owns it from here
+	for (std::size_t i = 0; i < 300; i++)
+	{
+		ScanRecord r;
+		r.index = i;
+		res.scans.push_back(r);
+	}
+	ASSERT_NE(res.scans.error(), "");
+	LoopDecision l;
+	l.inliers = 31;
+	res.loopDecisions.push_back(l);
+	// Without the run's error saying why, that is a caller's mistake: refused, nothing written.
+	EXPECT_THROW(io::writeRunOutputs(dir.path().string(), res, info), std::runtime_error);
+	EXPECT_TRUE(fs::exists(dir / "trajectory.tum"));
+	EXPECT_FALSE(fs::exists(dir / "loops.txt"));
+
+	res.error = res.scans.error();  // as the engine sets it
+	mrpt::containers::yaml failed = mrpt::containers::yaml::Map();
+	failed["error"] = res.error;
+	io::writeRunOutputs(dir.path().string(), res, failed);
+	for (const char* gone :
+	     {"trajectory.tum", "trajectory.kitti", "trajectory_online.tum", "timings.csv"})
+		EXPECT_FALSE(fs::exists(dir / gone)) << gone;
+	for (const char* kept : {"loops.txt", "pose_graph.graph", "run.yaml"})
+		EXPECT_TRUE(fs::exists(dir / kept)) << kept;
+	std::ifstream y(dir / "run.yaml");
+	const std::string yaml(std::istreambuf_iterator<char>(y), {});
+	EXPECT_NE(yaml.find("could not be kept in a temporary file"), std::string::npos) << yaml;
+	for (const auto& e : fs::directory_iterator(dir.path()))
+		EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }

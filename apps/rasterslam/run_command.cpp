@@ -355,6 +355,9 @@ int runCommand(const RunArgs& args)
 		runError = e.what();
 	}
 	progress.done();
+	if (opts.spoolScans && !res.scans.isSpooled() && !res.scans.empty())
+		std::cerr << "rasterslam: warning: no temporary file for the scan records in $TMPDIR or "
+		             "/tmp; they were kept in memory\n";
 	if (!res.error.empty())
 		runError = res.error;
 	if (runError.empty() && !imageError.empty())
@@ -529,8 +532,11 @@ int runCommand(const RunArgs& args)
 	}
 	catch (const std::exception& e)
 	{
-		std::cerr << "rasterslam: error writing outputs: " << e.what() << "\n";
-		return kExitError;
+		// Reported with the run's other error, if any, and the summary below.
+		if (runError.empty())
+			runError = std::string("writing the outputs: ") + e.what();
+		else
+			std::cerr << "rasterslam: error writing outputs: " << e.what() << "\n";
 	}
 
 	std::printf(

@@ -37,7 +37,7 @@ int openUnnamedTempFile(const std::string& dir, const std::string& what)
 	if (folder.empty())
 		folder = "/tmp";
 	std::string name = (fs::path(folder) / "rasterslam-XXXXXX").string();
-	const int fd = ::mkstemp(name.data());
+	const int fd = ::mkostemp(name.data(), O_CLOEXEC);  // not inherited by child processes
 	if (fd < 0)
 	{
 		const int e = errno;
@@ -124,7 +124,8 @@ void ScanLog::flushPending()
 			{
 				const int e = n < 0 ? errno : ENOSPC;
 				error_ = "the scan records could not be kept in a temporary file (" + reason(e) +
-				         "): the trajectory of scan " + std::to_string(written_) + " on is lost";
+				         "): " + std::to_string(size_ - written_) +
+				         " and any later are lost, and with them the run's trajectory";
 				break;
 			}
 			p += n;

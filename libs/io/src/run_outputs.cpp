@@ -131,14 +131,20 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 	using Producer = std::function<void(std::string & buf, const std::function<void()>& flush)>;
 	std::vector<std::pair<std::string, Producer>> files;
 	const auto& scans = res.scans;  // in memory, or read back from its temporary file
-	if (!scans.error().empty())
-		throw std::runtime_error(scans.error() + "; no output is written");
-	if (res.poses.size() != scans.size())
-		throw std::runtime_error("the run has " + std::to_string(scans.size()) +
-		                         " scan records but " + std::to_string(res.poses.size()) +
-		                         " poses; no output is written");
-	bool allGt = !scans.empty();
-	scans.forEach([&allGt](const ScanRecord& r) { allGt = allGt && r.groundTruth.has_value(); });
+	// Records lost (their temporary file could not be written) or no final poses: the run
+	// failed and says why in res.error (run.yaml); its per-scan files cannot be written, the
+	// others (loops.txt, the pose graph, run.yaml) still are.
+	const bool perScan = scans.error().empty() && res.poses.size() == scans.size();
+	if (!perScan && res.error.empty())
+		throw std::runtime_error(!scans.error().empty()
+		                             ? scans.error()
+		                             : "the run has " + std::to_string(scans.size()) +
+		                                   " scan records but " + std::to_string(res.poses.size()) +
+		                                   " poses; no output is written");
+	bool allGt = perScan && !scans.empty();
+	if (perScan)
+		scans.forEach([&allGt](const ScanRecord& r)
+		              { allGt = allGt && r.groundTruth.has_value(); });
 	// A trajectory file, a line a scan: `poseOf(i, record)` gives scan i's pose.
 	using PoseOf = std::function<Eigen::Isometry3d(std::size_t, const ScanRecord&)>;
 	auto trajectory = [&](bool tum, PoseOf poseOf)
@@ -167,32 +173,37 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 	{ return toIsometry(mrpt::poses::CPose3D(r.onlinePose)); };
 	const auto truth = [](std::size_t, const ScanRecord& r)
 	{ return toIsometry(mrpt::poses::CPose3D(*r.groundTruth)); };
-	files.emplace_back("trajectory.tum", trajectory(true, estimated));
-	files.emplace_back("trajectory.kitti", trajectory(false, estimated));
-	files.emplace_back("trajectory_online.tum", trajectory(true, onlinePose));
+	if (perScan)
+	{
+		files.emplace_back("trajectory.tum", trajectory(true, estimated));
+		files.emplace_back("trajectory.kitti", trajectory(false, estimated));
+		files.emplace_back("trajectory_online.tum", trajectory(true, onlinePose));
+	}
 	if (allGt)
 	{
 		files.emplace_back("groundtruth.tum", trajectory(true, truth));
 		files.emplace_back("groundtruth.kitti", trajectory(false, truth));
 	}
-	files.emplace_back(
-	    "timings.csv",
-	    [&scans](std::string& buf, const std::function<void()>& flush)
-	    {
-		    buf +=
-		        "index,stamp,points,status,inliers,keyframe,late,read_ms,rasterize_ms,odometry_ms,"
-		        "mapping_ms,loop_ms,total_ms,rss_mb\n";
-		    scans.forEach(
-		        [&](const ScanRecord& r)
-		        {
-			        buf += mrpt::format(
-			            "%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f\n", r.index,
-			            r.stamp, r.numPoints, toString(r.status), r.inliers, r.keyframe ? 1 : 0,
-			            r.late ? 1 : 0, r.ms.read, r.ms.rasterize, r.ms.odometry, r.ms.mapping,
-			            r.ms.loop, r.ms.total, r.rssMb);
-			        flush();
-		        });
-	    });
+	if (perScan)
+		files.emplace_back(
+		    "timings.csv",
+		    [&scans](std::string& buf, const std::function<void()>& flush)
+		    {
+			    buf +=
+			        "index,stamp,points,status,inliers,keyframe,late,read_ms,rasterize_ms,odometry_"
+			        "ms,"
+			        "mapping_ms,loop_ms,total_ms,rss_mb\n";
+			    scans.forEach(
+			        [&](const ScanRecord& r)
+			        {
+				        buf += mrpt::format(
+				            "%zu,%.6f,%zu,%s,%zu,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f\n",
+				            r.index, r.stamp, r.numPoints, toString(r.status), r.inliers,
+				            r.keyframe ? 1 : 0, r.late ? 1 : 0, r.ms.read, r.ms.rasterize,
+				            r.ms.odometry, r.ms.mapping, r.ms.loop, r.ms.total, r.rssMb);
+				        flush();
+			        });
+		    });
 	if (!res.loopDecisions.empty() || (spooledLoops && spooledLoops->size() > 0))
 		files.emplace_back(
 		    "loops.txt",
@@ -281,7 +292,8 @@ void writeRunOutputs(const std::string& dir, const RunResult& res,
 		fs::rename(d / (w + suffix), d / w);
 	// Files of an earlier run that this run does not produce would be mistaken for its own.
 	std::error_code ec;
-	for (const auto* stale : {"groundtruth.tum", "groundtruth.kitti", "loops.txt"})
+	for (const auto* stale : {"groundtruth.tum", "groundtruth.kitti", "loops.txt", "trajectory.tum",
+	                          "trajectory.kitti", "trajectory_online.tum", "timings.csv"})
 		if (std::find(written.begin(), written.end(), stale) == written.end())
 			fs::remove(d / stale, ec);
 }
