@@ -415,6 +415,35 @@ TEST(RasterslamCli, AMapThatCannotBeWrittenIsAnErrorInRunYamlAndLeavesNoDebris)
 		EXPECT_FALSE(contains(e.path().filename().string(), ".tmp-")) << e.path();
 }
 
+TEST(RasterslamCli, ScanRecordsThatCannotBeKeptFailTheRunAndKeepWhatTheyCan)
+{
+	// The scan records go to a temporary file in $TMPDIR, 256 at a time; a file size limit
+	// (40 kB, SIGXFSZ ignored) stands in for a full disk: the first 256 (66 kB) cannot be
+	// written. The run has no trajectory then: exit 1, the reason in run.yaml, the pose graph
+	// and run.yaml written, an earlier run's trajectory removed rather than left as this one's.
+	test::ScopedTempDir dir("cli-records-full");
+	fs::create_directories(dir / "tmp");
+	fs::create_directories(dir / "o");
+	std::ofstream(dir / "o" / "trajectory.tum") << "# an earlier run\n";
+	const auto r = test::runCommand(
+	    "bash -c \"trap '' XFSZ; ulimit -f 40; TMPDIR=" + (dir / "tmp").string() + " " +
+	    rs("run --rawlog " + test::townVlp16Rawlog() + " --last 299 --config tracking --out " +
+	       (dir / "o").string() + " --quiet") +
+	    "\"");
+	EXPECT_EQ(r.exitCode, 1) << r.output;
+	const std::string why =
+	    "the scan records could not be kept in a temporary file (File too large)";
+	EXPECT_TRUE(contains(r.output, "rasterslam: error: " + why)) << r.output;
+	EXPECT_TRUE(contains(r.output, "300 scans")) << r.output;  // the summary line is still given
+	const auto info = loadYamlFile((dir / "o" / "run.yaml").string());
+	EXPECT_TRUE(contains(info["summary"]["error"].as<std::string>(), why)) << r.output;
+	EXPECT_EQ(info["counts"]["scans"].as<int>(), 300);
+	EXPECT_TRUE(fs::exists(dir / "o" / "pose_graph.graph"));
+	EXPECT_FALSE(fs::exists(dir / "o" / "trajectory.tum"));
+	EXPECT_FALSE(fs::exists(dir / "o" / "timings.csv"));
+	EXPECT_TRUE(fs::is_empty(dir / "tmp"));  // the spools had no names
+}
+
 TEST(RasterslamCli, AMapInUseByAnotherProcessIsRefusedAndLeftAsItWas)
 {
 	test::ScopedTempDir dir("cli-lock");
