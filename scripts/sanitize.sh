@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The whole project and its test suite under AddressSanitizer and UndefinedBehaviorSanitizer:
-# configures build-asan (GCC, RelWithDebInfo, -fsanitize=address,undefined), builds every
+# configures build-asan (GCC, -O2 -g1, -fsanitize=address,undefined), builds every
 # target and runs ctest there. The tests run the programs and load the plugins of the same
 # tree, all built with the sanitizers; they inherit the options below. Any report fails
 # the test that caused it (abort_on_error, -fno-sanitize-recover=undefined).
@@ -29,7 +29,10 @@ export RASTERSLAM_MAX_MEMORY_MB=0
 
 san="-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
 t0=$(date +%s)
+# -g1: line tables and function names, all a sanitizer's report needs; a third less compile
+# time than -g (engine.cpp: 27 s against 41 s).
 "${serial[@]}" cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
   -DCMAKE_C_FLAGS="$san" -DCMAKE_CXX_FLAGS="$san" \
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
   -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=address,undefined" \
