@@ -444,6 +444,45 @@ TEST(RasterslamCli, ScanRecordsThatCannotBeKeptFailTheRunAndKeepWhatTheyCan)
 	EXPECT_TRUE(fs::is_empty(dir / "tmp"));  // the spools had no names
 }
 
+TEST(RasterslamCli, NoTemporaryFileKeepsTheRecordsInMemoryWithOneWarning)
+{
+	// $TMPDIR names a folder that does not exist: the scan records and the loop decisions stay
+	// in memory, the run succeeds, and each is warned of once, with --quiet and without (the
+	// engine's log gives the scan records' warning; --quiet silences the log, so the program
+	// gives it then).
+	test::ScopedTempDir dir("cli-no-tmp");
+	const std::string tmp = (dir / "missing").string();
+	const std::string records = "the scan records are kept in memory";
+	const std::string recordsQuiet =
+	    "no temporary file for the scan records in '" + tmp + "'; they were kept in memory";
+	const std::string decisions = "loop decisions kept in memory";
+	auto count = [](const std::string& text, const std::string& what)
+	{
+		std::size_t n = 0;
+		for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1))
+			n++;
+		return n;
+	};
+	for (const bool quiet : {false, true})
+	{
+		const auto out = dir / (quiet ? "quiet" : "loud");
+		const auto r = test::runCommand("env TMPDIR=" + tmp + " " +
+		                                rs("run --rawlog " + test::townVlp16Rawlog() +
+		                                   " --last 59 --config tracking --out " + out.string() +
+		                                   (quiet ? " --quiet" : "")));
+		EXPECT_EQ(r.exitCode, 0) << r.output;
+		EXPECT_EQ(count(r.output, records) + count(r.output, recordsQuiet), 1u) << r.output;
+		EXPECT_EQ(count(r.output, quiet ? recordsQuiet : records), 1u) << r.output;
+		EXPECT_TRUE(contains(r.output, "no temporary file for the scan records in '" + tmp + "'"))
+		    << r.output;  // the folder is named
+		EXPECT_EQ(count(r.output, decisions), 1u) << r.output;
+		// Nothing is lost: every scan's pose and time.
+		EXPECT_EQ(lines(out / "trajectory.tum"), 60u);
+		EXPECT_TRUE(fs::exists(out / "timings.csv"));
+		EXPECT_FALSE(fs::exists(tmp));
+	}
+}
+
 TEST(RasterslamCli, AMapInUseByAnotherProcessIsRefusedAndLeftAsItWas)
 {
 	test::ScopedTempDir dir("cli-lock");

@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -355,9 +356,13 @@ int runCommand(const RunArgs& args)
 		runError = e.what();
 	}
 	progress.done();
-	if (opts.spoolScans && !res.scans.isSpooled() && !res.scans.empty())
-		std::cerr << "rasterslam: warning: no temporary file for the scan records in $TMPDIR or "
-		             "/tmp; they were kept in memory\n";
+	// The engine warns of it in its log; --quiet silences the log, not this warning.
+	if (quiet && opts.spoolScans && !res.scans.isSpooled() && !res.scans.empty())
+	{
+		const char* t = std::getenv("TMPDIR");
+		std::cerr << "rasterslam: warning: no temporary file for the scan records in '"
+		          << (t && *t ? t : "/tmp") << "'; they were kept in memory\n";
+	}
 	if (!res.error.empty())
 		runError = res.error;
 	if (runError.empty() && !imageError.empty())
