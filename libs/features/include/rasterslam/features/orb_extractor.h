@@ -33,10 +33,17 @@ class OrbExtractor
 	const OrbParams& params() const { return p_; }
 	/** FAST threshold used by the last call. */
 	int lastThreshold() const { return lastThreshold_; }
+	/** FAST detections run so far (one per threshold tried). */
+	std::size_t detections() const { return detections_; }
+	/** The thresholds an image may be tried at, highest first. */
+	const std::vector<int>& thresholds() const { return thresholds_; }
 
    private:
 	OrbParams p_;
 	cv::Ptr<cv::ORB> orb_;
+	std::vector<int> thresholds_;
+	std::size_t hint_ = 0;  //!< the last image's threshold, as an index of thresholds_
+	std::size_t detections_ = 0;
 	int lastThreshold_ = 0;
 };
 
