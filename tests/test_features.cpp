@@ -228,6 +228,106 @@ TEST(Matcher, IdenticalAndShuffledSets)
 	EXPECT_TRUE(features::matchMutual(A, cv::Mat(0, 32, CV_8U), mp).empty());
 }
 
+/** matchMutual without positions as it was written first: pair after pair. */
+std::vector<features::Match> pairAfterPair(const cv::Mat& A, const cv::Mat& B,
+                                           const features::MatchParams& p)
+{
+	constexpr int kInf = std::numeric_limits<int>::max();
+	std::vector<int> bestA(A.rows, -1), distA(A.rows, kInf), secondA(A.rows, kInf);
+	std::vector<int> bestB(B.rows, -1), distB(B.rows, kInf);
+	for (int i = 0; i < A.rows; i++)
+		for (int j = 0; j < B.rows; j++)
+		{
+			const int d = features::hamming32(A.ptr<uint8_t>(i), B.ptr<uint8_t>(j));
+			if (d < distA[i])
+			{
+				secondA[i] = distA[i];
+				distA[i] = d;
+				bestA[i] = j;
+			}
+			else if (d < secondA[i])
+				secondA[i] = d;
+			if (d < distB[j])
+			{
+				distB[j] = d;
+				bestB[j] = i;
+			}
+		}
+	std::vector<features::Match> out;
+	for (int i = 0; i < A.rows; i++)
+	{
+		const int j = bestA[i];
+		if (j < 0 || bestB[j] != i || distA[i] > p.maxDistance)
+			continue;
+		if (p.ratio < 1.0f && secondA[i] != kInf && distA[i] >= p.ratio * secondA[i])
+			continue;
+		out.push_back({i, j, distA[i]});
+	}
+	return out;
+}
+
+TEST(Matcher, EveryKernelMatchesAsPairAfterPair)
+{
+	// Sets of every size around the kernels' 16 lanes, from descriptors with few set bits
+	// (many equal distances, so that the ties decide) and from random ones, with and without
+	// the ratio test and the distance bound.
+	std::mt19937 rng(77);
+	auto sparse = [&](int n)
+	{
+		cv::Mat d(n, 32, CV_8U, cv::Scalar(0));
+		std::uniform_int_distribution<int> bit(0, 255);
+		for (int i = 0; i < n; i++)
+			for (int k = 0; k < 3; k++)
+			{
+				const int b = bit(rng);
+				d.at<uint8_t>(i, b / 8) |= static_cast<uint8_t>(1u << (b % 8));
+			}
+		return d;
+	};
+	features::MatchParams plain, strict;
+	plain.maxDistance = 256;
+	strict.maxDistance = 40;
+	strict.ratio = 0.8f;
+	std::size_t compared = 0, matched = 0;
+	struct Restore
+	{
+		~Restore() { features::forcePortableMatcher(false); }
+	} restore;
+	for (const bool portable : {true, false})
+	{
+		features::forcePortableMatcher(portable);
+		SCOPED_TRACE(features::matcherKernel());
+		if (!portable)
+			std::printf("kernel on this processor: %s\n", features::matcherKernel());
+		for (const int na : {1, 7, 16, 33, 200})
+			for (const int nb : {1, 2, 15, 16, 17, 31, 250})
+				for (const bool few : {true, false})
+				{
+					const cv::Mat A = few ? sparse(na) : randomDescriptors(na, rng());
+					cv::Mat B = few ? sparse(nb) : randomDescriptors(nb, rng());
+					if (!few)  // some true pairs among the random ones
+						for (int i = 0; i < std::min(na, nb); i += 3)
+							A.row(i).copyTo(B.row(nb - 1 - i));
+					for (const auto* p : {&plain, &strict})
+					{
+						const auto got = features::matchMutual(A, B, *p);
+						const auto want = pairAfterPair(A, B, *p);
+						ASSERT_EQ(got.size(), want.size()) << na << " x " << nb;
+						for (std::size_t k = 0; k < got.size(); k++)
+						{
+							EXPECT_EQ(got[k].a, want[k].a);
+							EXPECT_EQ(got[k].b, want[k].b);
+							EXPECT_EQ(got[k].distance, want[k].distance);
+						}
+						++compared;
+						matched += got.size();
+					}
+				}
+	}
+	EXPECT_EQ(compared, 2u * 5 * 7 * 2 * 2);
+	EXPECT_GT(matched, 1000u);  // the comparisons were about matches, not empty lists
+}
+
 // The direct index's matching: pairs in different groups are never compared.
 TEST(Matcher, GroupedComparesOnlyWithinAGroup)
 {
@@ -438,7 +538,9 @@ void expectSameFeatures(const std::vector<cv::KeyPoint>& a, const cv::Mat& da,
 	}
 	ASSERT_EQ(da.size(), db.size());
 	if (!da.empty())
+	{
 		EXPECT_EQ(cv::norm(da, db, cv::NORM_HAMMING), 0);
+	}
 }
 
 TEST(Orb, SearchFromTheLastThresholdGivesWhatTryingEveryThresholdGives)

@@ -45,6 +45,13 @@ std::vector<Match> matchMutual(const cv::Mat& descA, const cv::Mat& descB, const
                                const std::vector<Eigen::Vector3f>* posA = nullptr,
                                const std::vector<Eigen::Vector3f>* posB = nullptr);
 
+/** The brute-force kernel matchMutual compares every pair with when it has no positions:
+ *  "avx512" where the processor counts bits in AVX-512 registers (VPOPCNTDQ), else
+ *  "portable". Both give the same matches. */
+const char* matcherKernel();
+/** Tests and benchmarks: true keeps matchMutual on the portable kernel. */
+void forcePortableMatcher(bool portable);
+
 /** Mutual nearest neighbours among the pairs in the same group only (groupA[i] == groupB[j]):
  *  a bag-of-words direct index, whose groups are vocabulary nodes, so that descriptors under
  *  different nodes are never compared (DBoW2's way). The ratio test compares the best and
