@@ -341,6 +341,63 @@ TEST(Bow, DatabaseAddRemoveQuery)
 	EXPECT_TRUE(db.query(bows[0], 0).empty());
 }
 
+TEST(Bow, QueryViewsKeepEachEntrysBestOnTheFirstViewsScale)
+{
+	const auto f = makeFixture();
+	ASSERT_GE(f.images.size(), 4u);
+	Database db;
+	std::vector<BowVector> bows(f.images.size());
+	for (std::size_t i = 0; i < f.images.size(); ++i)
+	{
+		f.voc.transform(f.images[i], bows[i]);
+		db.add(bows[i]);
+	}
+	// One view: query() itself.
+	const auto one = db.queryViews({{&bows[0], 0.5}}, 3);
+	const auto plain = db.query(bows[0], 3);
+	ASSERT_EQ(one.size(), plain.size());
+	for (std::size_t i = 0; i < one.size(); ++i)
+	{
+		EXPECT_EQ(one[i].entry, plain[i].entry);
+		EXPECT_EQ(one[i].score, plain[i].score);
+	}
+	// Two views of "one place": the second's scores count at 0.5 / 0.25 = twice, so its own
+	// entry (score 1 against itself) comes first at 2, and the first view's own entry keeps
+	// its 1 where the second view scores it lower.
+	const auto two = db.queryViews({{&bows[0], 0.5}, {&bows[2], 0.25}}, 100);
+	ASSERT_GE(two.size(), 2u);
+	EXPECT_EQ(two[0].entry, 2u);
+	EXPECT_NEAR(two[0].score, 2.0, 1e-9);
+	for (std::size_t i = 0; i < two.size(); ++i)
+	{
+		const auto e = two[i].entry;
+		EXPECT_NEAR(
+		    two[i].score,
+		    std::max(Vocabulary::score(bows[0], bows[e]), 2 * Vocabulary::score(bows[2], bows[e])),
+		    1e-9);
+		if (i > 0)
+			EXPECT_TRUE(two[i - 1].score > two[i].score ||
+			            (two[i - 1].score == two[i].score && two[i - 1].entry < e));
+		for (std::size_t j = 0; j < i; ++j)
+			EXPECT_NE(two[j].entry, e);  // an entry once, at its best
+	}
+	// A weight scales a view's scores: at 0.25 the second view's own entry scores 0.5.
+	const auto weighed = db.queryViews({{&bows[0], 0.5}, {&bows[2], 0.25, 0.25}}, 100);
+	ASSERT_FALSE(weighed.empty());
+	EXPECT_EQ(weighed.front().entry, 0u);
+	for (const auto& x : weighed)
+		EXPECT_NEAR(x.score,
+		            std::max(Vocabulary::score(bows[0], bows[x.entry]),
+		                     0.5 * Vocabulary::score(bows[2], bows[x.entry])),
+		            1e-9);
+	// At most maxResults; a view with no normalizer counts for nothing.
+	EXPECT_LE(db.queryViews({{&bows[0], 0.5}, {&bows[2], 0.25}}, 2).size(), 2u);
+	const auto none = db.queryViews({{&bows[0], 0.5}, {&bows[2], 0.0}}, 100);
+	ASSERT_FALSE(none.empty());
+	EXPECT_EQ(none.front().entry, 0u);
+	EXPECT_TRUE(db.queryViews({}, 5).empty());
+}
+
 TEST(Bow, DirectIndex)
 {
 	const auto f = makeFixture(4, 3);

@@ -249,6 +249,8 @@ TEST(StrictConfig, OutOfRangeValuesNameFileLineAndKey)
 	     "must be >= 0, got -0.1"},
 	    {"loop_detector", "rasterslam::BowLoopDetector", "max_hamming", "300",
 	     "must be in [0, 256], got 300"},
+	    {"loop_detector", "rasterslam::BowLoopDetector", "query_turns", "0",
+	     "must be in [1, 16], got 0"},
 	    {"rasterizer", "rasterslam::ElevationRasterizer", "resolution_m", "0",
 	     "must be > 0, got 0"},
 	    {"rasterizer", "rasterslam::ElevationRasterizer", "ground_max_tilt_deg", "95",
@@ -324,6 +326,22 @@ TEST(StrictConfig, OutOfRangeValuesNameFileLineAndKey)
 		              "mem.yaml");
 	    });
 	EXPECT_EQ(e, "mem.yaml: odometry.params.min_inliers: must be >= 3, got -5");
+}
+
+TEST(StrictConfig, QueryTurnsAndCanonicalYawAreOneOrTheOther)
+{
+	// Both turn the loop detector's query image: asking for both is a mistake, not a choice.
+	test::ScopedTempDir dir("config");
+	const std::string text =
+	    "odometry: {class: rasterslam::OrbOdometry}\n"
+	    "rasterizer: {class: rasterslam::ElevationRasterizer}\n"
+	    "map_manager: {class: rasterslam::LocalMapManager}\n"
+	    "loop_detector:\n  class: rasterslam::BowLoopDetector\n  params:\n"
+	    "    canonical_yaw: true\n    query_turns: 4\n";
+	const auto path = write(dir / "turns.yaml", text);
+	EXPECT_EQ(engineError(path), path + ":" + std::to_string(lineOf(text, "    query_turns")) +
+	                                 ":5: loop_detector.params.query_turns: and canonical_yaw "
+	                                 "both turn the query's image: use one");
 }
 
 TEST(StrictConfig, ShippedConfigsLoadToTheSameValues)

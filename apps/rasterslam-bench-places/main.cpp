@@ -82,6 +82,9 @@ struct Described
 	std::vector<uint32_t> groups;
 	std::size_t nGroups = 0;     //!< distinct nodes among `groups`
 	mrpt::poses::CPose3D frame;  //!< of the image, in the simulated world
+	/** --query-turns: the words and normalizer of the same points rasterized turned by
+	 *  k * 90 / N degrees, k = 1..N-1 (queries only). */
+	std::vector<std::pair<bow::BowVector, double>> turns;
 };
 
 struct Place
@@ -98,6 +101,8 @@ struct Place
 };
 
 bool gCanonical = false;
+int gQueryTurns = 1;       //!< --query-turns
+double gTurnWeight = 0.8;  //!< --turn-weight
 
 bool gVerify = false;
 int gDirectLevels = 0;  //!< --direct-index
@@ -145,22 +150,51 @@ Described describe(const RasterFrame& f, const std::vector<PointXYZI>& pts,
 	return out;
 }
 
-RasterFrame rasterOf(const Scan& scan, uint32_t seed)
+RasterFrame rasterOf(const Scan& scan, uint32_t seed, raster::Plane* planeOut = nullptr)
 {
 	const raster::Plane plane = raster::fitGroundPlane(scan.points, raster::GroundParams(), seed);
 	raster::RasterParams rp;
 	rp.canonicalYaw = gCanonical;
 	RasterFrame f;
 	raster::rasterizeElevation(scan.points, plane, rp, f);
+	if (planeOut)
+		*planeOut = plane;
 	return f;
+}
+
+/** --query-turns N: a query's points rasterized again turned by k * 90 / N degrees (k = 1..N-1)
+ *  and described; a turn of 90 degrees maps the pixel grid onto itself, so one of the N images
+ *  lies within 45 / N degrees of any place's grid. */
+void addTurns(Described& d, const std::vector<PointXYZI>& pts, const raster::Plane& plane,
+              const raster::RasterParams& rp, const bow::Vocabulary& vocab,
+              features::OrbExtractor& orb)
+{
+	for (int k = 1; k < gQueryTurns; k++)
+	{
+		const auto yaw = static_cast<float>(k * (M_PI / 2) / gQueryTurns);
+		RasterFrame f;
+		raster::rasterizeElevationTurned(pts, plane, rp, yaw, f);
+		std::vector<cv::KeyPoint> kps;
+		cv::Mat desc;
+		orb.extract(f.image.asCvMatRef(), kps, desc);
+		const auto dd = bow::toDescriptors(desc.ptr<uint8_t>(), desc.empty() ? 0 : desc.rows);
+		bow::BowVector w;
+		vocab.transform(dd, w);
+		d.turns.emplace_back(std::move(w), vocab.selfScore(dd));
+	}
 }
 
 /** A scan's image described; its normalizer (as the loop detector normalizes a query with
  *  no previous keyframe) is the score of its even features against its odd ones. */
 Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
-                    const bow::Vocabulary& vocab, features::OrbExtractor& orb, uint32_t seed)
+                    const bow::Vocabulary& vocab, features::OrbExtractor& orb, uint32_t seed,
+                    bool query = false)
 {
-	return describe(rasterOf(scan, seed), scan.points, vocab, orb, pose);
+	raster::Plane plane;
+	auto d = describe(rasterOf(scan, seed, &plane), scan.points, vocab, orb, pose);
+	if (query)
+		addTurns(d, scan.points, plane, raster::RasterParams(), vocab, orb);
+	return d;
 }
 
 /** The local-map image of scans at `poses` (the map manager's way): each scan's projected
@@ -168,7 +202,8 @@ Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
  *  the map manager's defaults (0.2 m a pixel, +-60 m, no ground removal). */
 Described localMapPlace(const std::vector<Scan>& scans,
                         const std::vector<mrpt::poses::CPose3D>& poses,
-                        const bow::Vocabulary& vocab, features::OrbExtractor& orb, uint32_t seed)
+                        const bow::Vocabulary& vocab, features::OrbExtractor& orb, uint32_t seed,
+                        bool query = false)
 {
 	std::vector<PointXYZI> pts;
 	for (std::size_t i = 0; i < scans.size(); i++)
@@ -184,7 +219,10 @@ Described localMapPlace(const std::vector<Scan>& scans,
 	mp.canonicalYaw = gCanonical;
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mp, img);
-	return describe(img, pts, vocab, orb, poses[0]);
+	auto d = describe(img, pts, vocab, orb, poses[0]);
+	if (query)
+		addTurns(d, pts, raster::Plane(), raster::localMapRasterParams(), vocab, orb);
+	return d;
 }
 
 /** One candidate verified: the query's features matched to the place's, the 3D points of
@@ -340,13 +378,13 @@ int run(const Args& a)
 					scans.push_back(s.scanFrom(poses.back(), 1000000 + kk, s.stamp(kk)));
 				}
 				scansSimulated += scans.size();
-				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 7));
+				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 7), true);
 			}
 			else
 			{
 				const Scan scan = s.scanFrom(pose, 1000000 + k, s.stamp(k));
 				++scansSimulated;
-				img = scanPlace(scan, pose, *vocab, orb, static_cast<uint32_t>(k + 7));
+				img = scanPlace(scan, pose, *vocab, orb, static_cast<uint32_t>(k + 7), true);
 			}
 			queries.push_back({other ? -1 : t, Eigen::Vector3d(pose.x(), pose.y(), pose.z()),
 			                   std::move(img), q % 2 == 1});
@@ -484,12 +522,12 @@ int run(const Args& a)
 					poses.push_back(poseOf(route[kk].pose * aside));
 				}
 				scansSimulated += scans.size();
-				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(at + 7));
+				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(at + 7), true);
 			}
 			else
 			{
 				++scansSimulated;
-				img = scanPlace(render(at), pose, *vocab, orb, static_cast<uint32_t>(at + 7));
+				img = scanPlace(render(at), pose, *vocab, orb, static_cast<uint32_t>(at + 7), true);
 			}
 			queries.push_back({kittiTown, Eigen::Vector3d(pose.x(), pose.y(), pose.z()),
 			                   std::move(img), opposite});
@@ -539,7 +577,15 @@ int run(const Args& a)
 	{
 		const auto& q = queries[qi];
 		const auto tq = std::chrono::steady_clock::now();
-		const auto res = db.query(q.img.words, std::max(5, a.candidates));
+		const auto nres = static_cast<std::size_t>(std::max(5, a.candidates));
+		// --query-turns: the best of the query's turned images (their scores on the scale of
+		// the image as driven, so that what follows reads them as one query's, and weighed
+		// by --turn-weight: a turned image's spurious words otherwise push out the places of
+		// queries that were aligned already).
+		std::vector<bow::Database::View> views{{&q.img.words, q.img.selfScore}};
+		for (const auto& [w, self] : q.img.turns)
+			views.push_back({&w, self, gTurnWeight});
+		const auto res = db.queryViews(views, nres);
 		ms.push_back(
 		    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq)
 		        .count());
@@ -744,6 +790,8 @@ int run(const Args& a)
 		j["towns"] = a.towns;
 		j["places"] = places.size();
 		j["place_kind"] = a.localMaps ? "local_map" : "scan";
+		j["query_turns"] = gQueryTurns;
+		j["turn_weight"] = gTurnWeight;
 		j["query_kind"] = a.queryLocalMaps ? "local_map" : "scan";
 		j["scans_simulated"] = scansSimulated;
 		j["queries"] = withTruth;
@@ -962,6 +1010,16 @@ int main(int argc, char** argv)
 	    ->needs(kitti)
 	    ->check(CLI::Range(1, 100000).description(""))
 	    ->type_name("N");
+	app.add_option("--query-turns", gQueryTurns,
+	               "each query also rasterized turned by k * 90 / N degrees (k = 1..N-1), its "
+	               "candidates the best of the N images' (1: the image as driven)")
+	    ->check(CLI::Range(1, 16).description(""))
+	    ->type_name("N");
+	app.add_option("--turn-weight", gTurnWeight,
+	               "--query-turns: weight of the turned images' scores against the image as "
+	               "driven (0.8)")
+	    ->check(CLI::Range(0.0, 1.0).description(""))
+	    ->type_name("W");
 	app.add_flag("--canonical", gCanonical,
 	             "rasterize each scan turned so that its dominant edges run along the image axes");
 	auto* verifyFlag =

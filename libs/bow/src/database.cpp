@@ -111,6 +111,40 @@ std::vector<Database::Result> Database::query(const BowVector& bow, std::size_t 
 	return out;
 }
 
+std::vector<Database::Result> Database::queryViews(const std::vector<View>& views,
+                                                   std::size_t maxResults) const
+{
+	if (views.empty())
+		return {};
+	auto out = query(*views[0].words, maxResults);
+	if (views.size() == 1)
+		return out;
+	std::unordered_map<EntryId, double> best;
+	for (const auto& r : out)
+		best[r.entry] = r.score;
+	for (std::size_t v = 1; v < views.size(); v++)
+	{
+		if (views[v].selfScore <= 1e-12)
+			continue;
+		const double scale = views[0].selfScore / views[v].selfScore * views[v].weight;
+		for (const auto& r : query(*views[v].words, maxResults))
+		{
+			auto [it, inserted] = best.try_emplace(r.entry, r.score * scale);
+			if (!inserted)
+				it->second = std::max(it->second, r.score * scale);
+		}
+	}
+	out.clear();
+	for (const auto& [e, s] : best)
+		out.push_back({e, s});
+	const auto better = [](const Result& x, const Result& y)
+	{ return x.score != y.score ? x.score > y.score : x.entry < y.entry; };
+	std::sort(out.begin(), out.end(), better);
+	if (out.size() > maxResults)
+		out.resize(maxResults);
+	return out;
+}
+
 const FeatureVector& Database::featureVector(EntryId e) const
 {
 	const auto it = entries_.find(e);

@@ -40,6 +40,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	groundMaxTilt_deg_ = p.getDouble("relocalization_max_tilt_deg", groundMaxTilt_deg_);
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
 	canonicalYaw_ = p.getBool("canonical_yaw", canonicalYaw_);
+	queryTurns_ = p.getInt("query_turns", queryTurns_);
+	queryTurnWeight_ = p.getDouble("query_turn_weight", queryTurnWeight_);
 	directLevels_ = p.getInt("direct_index_levels_up", directLevels_);
 	stopAtInliers_ = p.getInt("stop_at_inliers", stopAtInliers_);
 	guidedRadius_m_ = p.getDouble("guided_radius_m", guidedRadius_m_);
@@ -73,6 +75,10 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireRange(groundMaxTilt_deg_, 0, 180, "relocalization_max_tilt_deg");
 	p.requirePositive(pointSigma_m_, "point_sigma_m");
 	p.requireRange(directLevels_, 0, 8, "direct_index_levels_up");
+	p.requireRange(queryTurns_, 1, 16, "query_turns");
+	p.requireRange(queryTurnWeight_, 0, 1, "query_turn_weight");
+	if (queryTurns_ > 1 && canonicalYaw_)
+		p.reject("query_turns", "and canonical_yaw both turn the query's image: use one");
 	p.requireAtLeast(guidedRadius_m_, 0, "guided_radius_m");  // 0: off
 	p.requirePositive(guidedGate_m_, "guided_gate_m");
 	p.requireRange(guidedGate_deg_, 0, 180, "guided_gate_deg");
@@ -424,6 +430,9 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			b = canonicalWords(*kf.scan, *kf.raster);
 		else
 			vocab_->transform(descriptorsOf(q.desc), b);
+		// query_turns: the keyframe's image turned too (not with image queries: the map
+		// manager makes those).
+		const bool turned = queryTurns_ > 1 && !imageQuery && kf.scan && kf.raster;
 		// DBoW2 normalizes by the score against the previous keyframe: what a "good" match
 		// looks like here and now. The first keyframe (of a run, after a loss, or after the
 		// online vocabulary was trained again) has none: it is normalized as a relocalization
@@ -432,8 +441,11 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		if (kf.afterLoss || kf.locatedAt)
 			prevBow_.reset();  // after a loss (relocalized or not) the previous keyframe is
 			                   // not known to be near this one
-		const auto results = db_.size() > 0 ? db_.query(b, static_cast<std::size_t>(maxResults_))
-		                                    : std::vector<bow::Database::Result>{};
+		const auto results = db_.size() == 0 ? std::vector<bow::Database::Result>{}
+		                     : turned        ? queryWithTurns(b, selfScore(descriptorsOf(q.desc)),
+		                                                      turnedViews(*kf.scan, *kf.raster),
+		                                                      static_cast<std::size_t>(maxResults_))
+		                                     : db_.query(b, static_cast<std::size_t>(maxResults_));
 		// An image query shares most of its keyframes with the previous one, whose score says
 		// nothing of a place: it is normalized by its own halves.
 		const double norm = results.empty() ? 0

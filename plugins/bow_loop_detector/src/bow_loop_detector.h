@@ -66,6 +66,7 @@ class BowLoopDetector : public LoopDetector
 		 *  frame), when it has one; called only once a place is found. */
 		std::function<std::vector<Eigen::Vector3f>()> surface;
 	};
+	using TurnedView = std::pair<bow::BowVector, double>;
 	/** What a place scores against itself: the BOW score of a query's even features against
 	 *  its odd ones (the normalizer of a query with no previous keyframe); 0 under 40 features. */
 	double selfScore(const std::vector<bow::Descriptor>& desc) const;
@@ -112,11 +113,24 @@ class BowLoopDetector : public LoopDetector
 	 *  (canonical_yaw). */
 	RelocalizationResult relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
 	                                     const PoseView& poses,
-	                                     const bow::BowVector* words = nullptr);
+	                                     const bow::BowVector* words = nullptr,
+	                                     const std::vector<TurnedView>* turns = nullptr);
 	/** canonical_yaw: the words of the scan's elevation image turned to its dominant edges
 	 *  (as the local-map images are with map_manager.canonical_yaw). */
 	bow::BowVector canonicalWords(const Scan& scan, const RasterFrame& raster) const;
 	bool canonicalYaw_ = false;
+	/** query_turns > 1: the words and normalizer (selfScore) of the scan's elevation image
+	 *  rasterized turned by k * 90 / query_turns degrees, k = 1..query_turns-1: a turn of 90
+	 *  maps the pixel grid onto itself, so one of the images lies within 45 / query_turns
+	 *  degrees of any place's grid. */
+	std::vector<TurnedView> turnedViews(const Scan& scan, const RasterFrame& raster) const;
+	/** The database's best `n` for words `b` (normalizer `norm`) and the turned views of the
+	 *  same place, each entry at its best on b's scale (bow::Database::queryViews). */
+	std::vector<bow::Database::Result> queryWithTurns(const bow::BowVector& b, double norm,
+	                                                  const std::vector<TurnedView>& turns,
+	                                                  std::size_t n) const;
+	int queryTurns_ = 1;
+	double queryTurnWeight_ = 0.8;  //!< query_turn_weight
 	/** Keyframes of a local map as a mask: bit k stands for lm.keyframes[k] (as in
 	 *  LocalMap::observers); all bits set: every keyframe. */
 	static constexpr uint32_t kAllKeyframes = ~0u;

@@ -47,6 +47,12 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 		const auto words = canonicalWords(scan, raster);
 		return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses, &words);
 	}
+	if (queryTurns_ > 1)
+	{
+		const auto turns = turnedViews(scan, raster);
+		return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses, nullptr,
+		                       &turns);
+	}
 	return relocalizeQuery(q, static_cast<uint32_t>(scan.index * 17 + 3), map, poses);
 }
 
@@ -91,7 +97,8 @@ double BowLoopDetector::selfScore(const std::vector<bow::Descriptor>& desc) cons
 
 RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t seed, const Map& map,
                                                       const PoseView& poses,
-                                                      const bow::BowVector* words)
+                                                      const bow::BowVector* words,
+                                                      const std::vector<TurnedView>* turns)
 {
 	RelocalizationResult res;
 	bow::BowVector b;
@@ -100,14 +107,15 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		b = *words;
 	else
 		vocab_->transform(desc, b);
-	const auto results = db_.query(b, static_cast<std::size_t>(maxCandidates_ + 1));
+	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops).
+	const double norm = selfScore(desc);
+	const auto n = static_cast<std::size_t>(maxCandidates_ + 1);
+	const auto results = turns ? queryWithTurns(b, norm, *turns, n) : db_.query(b, n);
 	if (results.empty())
 	{
 		res.reason = "candidates";
 		return res;
 	}
-	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops).
-	const double norm = selfScore(desc);
 	res.reason = "inliers";
 	LocalMap::ConstPtr bestMap;
 	Eigen::Isometry3d bestT = Eigen::Isometry3d::Identity();
@@ -227,4 +235,38 @@ bow::BowVector BowLoopDetector::canonicalWords(const Scan& scan, const RasterFra
 	bow::BowVector b;
 	vocab_->transform(descriptorsOf(desc), b);
 	return b;
+}
+
+std::vector<BowLoopDetector::TurnedView> BowLoopDetector::turnedViews(
+    const Scan& scan, const RasterFrame& raster) const
+{
+	raster::Plane plane;
+	plane.valid = raster.groundValid;
+	plane.n =
+	    Eigen::Vector3f(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
+	plane.d = raster.groundD;
+	std::vector<TurnedView> out;
+	for (int k = 1; k < queryTurns_; k++)
+	{
+		RasterFrame turned;
+		raster::rasterizeElevationTurned(scan.points, plane, raster::RasterParams(),
+		                                 static_cast<float>(k * (M_PI / 2) / queryTurns_), turned);
+		std::vector<cv::KeyPoint> kps;
+		cv::Mat desc;
+		orb_->extract(turned.image.asCvMatRef(), kps, desc);
+		const auto d = descriptorsOf(desc);
+		bow::BowVector b;
+		vocab_->transform(d, b);
+		out.emplace_back(std::move(b), selfScore(d));
+	}
+	return out;
+}
+
+std::vector<bow::Database::Result> BowLoopDetector::queryWithTurns(
+    const bow::BowVector& b, double norm, const std::vector<TurnedView>& turns, std::size_t n) const
+{
+	std::vector<bow::Database::View> views{{&b, norm}};
+	for (const auto& [w, self] : turns)
+		views.push_back({&w, self, queryTurnWeight_});
+	return db_.queryViews(views, n);
 }

@@ -114,6 +114,21 @@ class Database : public mrpt::serialization::CSerializable
 	 *  with at least one word in common. */
 	std::vector<Result> query(const BowVector& bow, std::size_t maxResults) const;
 
+	/** One image's words, what the image scores against itself (its normalizer), and a
+	 *  weight on its scores (the first view's is not used). */
+	struct View
+	{
+		const BowVector* words = nullptr;
+		double selfScore = 0;
+		double weight = 1;
+	};
+	/** One place seen several ways (its points rasterized at several turns) as one query:
+	 *  each view's scores are put on the first view's scale (times views[0].selfScore /
+	 *  its own selfScore, times its weight; a view with no normalizer counts for nothing),
+	 *  an entry keeps its best, and the best `maxResults` come back as query() orders them.
+	 *  With one view, query() itself. */
+	std::vector<Result> queryViews(const std::vector<View>& views, std::size_t maxResults) const;
+
 	bool contains(EntryId e) const { return entries_.count(e) != 0; }
 	std::size_t size() const { return entries_.size(); }
 	const FeatureVector& featureVector(EntryId e) const;
