@@ -280,6 +280,12 @@ TEST(StrictConfig, OutOfRangeValuesNameFileLineAndKey)
 	     "must be in (1, 2], got 1e+300"},
 	    {"loop_detector", "rasterslam::BowLoopDetector", "query_features", "2147483647",
 	     "must be in [1, 100000], got 2147483647"},
+	    {"loop_detector", "rasterslam::BowLoopDetector", "surface_search_hypotheses", "0",
+	     "must be in [1, 64], got 0"},
+	    {"loop_detector", "rasterslam::BowLoopDetector", "surface_search_inlier_ratio", "0.5",
+	     "must be >= 1, got 0.5"},
+	    {"loop_detector", "rasterslam::BowLoopDetector", "surface_search_yaw_step_deg", "0",
+	     "must be in [0.1, 90], got 0"},
 	    {"optimizer", "rasterslam::LevMarqOptimizer", "tau", "-1", "must be > 0, got -1"},
 	    {"optimizer", "rasterslam::CeresOptimizer", "max_iterations", "0", "must be >= 1, got 0"},
 	};
@@ -328,20 +334,39 @@ TEST(StrictConfig, OutOfRangeValuesNameFileLineAndKey)
 	EXPECT_EQ(e, "mem.yaml: odometry.params.min_inliers: must be >= 3, got -5");
 }
 
+/** A config of the ORB pipeline whose loop detector has these params lines. */
+std::string withLoopDetectorParams(const std::string& params)
+{
+	return "odometry: {class: rasterslam::OrbOdometry}\n"
+	       "rasterizer: {class: rasterslam::ElevationRasterizer}\n"
+	       "map_manager: {class: rasterslam::LocalMapManager}\n"
+	       "loop_detector:\n  class: rasterslam::BowLoopDetector\n  params:\n" +
+	       params;
+}
+
 TEST(StrictConfig, QueryTurnsAndCanonicalYawAreOneOrTheOther)
 {
 	// Both turn the loop detector's query image: asking for both is a mistake, not a choice.
 	test::ScopedTempDir dir("config");
 	const std::string text =
-	    "odometry: {class: rasterslam::OrbOdometry}\n"
-	    "rasterizer: {class: rasterslam::ElevationRasterizer}\n"
-	    "map_manager: {class: rasterslam::LocalMapManager}\n"
-	    "loop_detector:\n  class: rasterslam::BowLoopDetector\n  params:\n"
-	    "    canonical_yaw: true\n    query_turns: 4\n";
+	    withLoopDetectorParams("    canonical_yaw: true\n    query_turns: 4\n");
 	const auto path = write(dir / "turns.yaml", text);
 	EXPECT_EQ(engineError(path), path + ":" + std::to_string(lineOf(text, "    query_turns")) +
 	                                 ":5: loop_detector.params.query_turns: and canonical_yaw "
 	                                 "both turn the query's image: use one");
+}
+
+TEST(StrictConfig, SurfaceSearchNeedsTheQuerysSurface)
+{
+	// The surface search aligns the query's surface, which icp_refine makes: without it the
+	// option would do nothing, so it is refused rather than ignored.
+	test::ScopedTempDir dir("config");
+	const std::string text = withLoopDetectorParams("    relocalization_surface_search: true\n");
+	const auto path = write(dir / "surface.yaml", text);
+	EXPECT_EQ(engineError(path),
+	          path + ":" + std::to_string(lineOf(text, "    relocalization_surface_search")) +
+	              ":5: loop_detector.params.relocalization_surface_search: needs icp_refine "
+	              "(the query's surface)");
 }
 
 TEST(StrictConfig, ShippedConfigsLoadToTheSameValues)

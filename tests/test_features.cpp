@@ -3,6 +3,7 @@
 #include <rasterslam/features/icp.h>
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/features/planar_search.h>
 #include <rasterslam/features/rigid_ransac.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/raster/elevation_image.h>
@@ -835,4 +836,53 @@ TEST(Icp, VoxelDownsampleOfAScanKeepsItsRange)
 	}
 	EXPECT_TRUE(near);
 	EXPECT_TRUE(far);
+}
+
+// planarSearch: the top view of a scene's upright structure, correlated over every yaw step and
+// shift, finds where a source lies in a target with no prior, and nothing without structure.
+TEST(PlanarSearch, FindsAFarTurnedPoseWithNoPriorAndNothingOnBareGround)
+{
+	// A yard of walls, the source seen from 11 m, -6 m and 137 degrees away: the best
+	// hypothesis is that pose within a cell (1 m) and a yaw step (2 degrees).
+	const auto target = scene(
+	    {{-15, -15, 15, -15}, {15, -15, 15, 5}, {-8, 15, 15, 15}, {-5, -3, -5, 6}, {4, 2, 9, 2}},
+	    7);
+	const Eigen::Isometry3d T = motion(137, Eigen::Vector3d(11, -6, 0));
+	const auto hyps = features::planarSearch(moved(target, T.inverse()), target);
+	ASSERT_FALSE(hyps.empty());
+	EXPECT_LE(hyps.size(), 8u);
+	const auto& best = hyps.front();
+	EXPECT_LT((best.T.translation() - T.translation()).norm(), 1.0)
+	    << best.T.translation().transpose();
+	EXPECT_LT(Eigen::AngleAxisd(best.T.linear().transpose() * T.linear()).angle() / kDeg, 2.0);
+	EXPECT_GT(best.score, 0.8);
+	for (std::size_t i = 1; i < hyps.size(); i++)
+	{
+		EXPECT_LE(hyps[i].score, hyps[i - 1].score);  // best first
+		// and distinct: 3 m (exactly 3 cells is distinct) or 10 degrees from the best
+		const Eigen::Isometry3d d = best.T.inverse() * hyps[i].T;
+		EXPECT_TRUE(d.translation().norm() >= 3.0 - 1e-6 ||
+		            Eigen::AngleAxisd(d.linear()).angle() / kDeg >= 10.0)
+		    << i << ": " << d.translation().norm() << " m, "
+		    << Eigen::AngleAxisd(d.linear()).angle() / kDeg << " deg";
+	}
+	// Flat ground alone has no structure cell: no hypothesis rather than a guess.
+	EXPECT_TRUE(features::planarSearch(scene({}, 8), target).empty());
+
+	// A real KITTI scan against itself moved 23 m and turned by -71 degrees: its walls, trees
+	// and cars give the pose back, among 180 yaw steps.
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto pts = io::loadKittiBin(test::sharedData("kitti00-0000-0100/velodyne/000040.bin"));
+	std::vector<Eigen::Vector3f> real;
+	for (const auto& p : pts)
+		real.emplace_back(p.x, p.y, p.z);
+	const Eigen::Isometry3d Tr = motion(-71, Eigen::Vector3d(-21, 9.5, 0));
+	features::PlanarSearchParams params;
+	params.range_m = 40;
+	const auto r = features::planarSearch(moved(real, Tr.inverse()), real, params);
+	ASSERT_FALSE(r.empty());
+	EXPECT_LT((r.front().T.translation() - Tr.translation()).norm(), 1.0)
+	    << r.front().T.translation().transpose();
+	EXPECT_LT(Eigen::AngleAxisd(r.front().T.linear().transpose() * Tr.linear()).angle() / kDeg,
+	          2.0);
 }

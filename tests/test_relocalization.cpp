@@ -266,8 +266,8 @@ TEST(Relocalization, AJumpInTheRawlogIsRelocalized)
 namespace
 {
 /** The KITTI sample as a plain rawlog (dir/k.rawlog), mapped with slam.yaml: dir/run (its
- *  outputs) and dir/map. */
-void mapKittiStreet(const std::string& D, const fs::path& dir)
+ *  outputs) and dir/map; with `last` >= 0, from scans 0..last only. */
+void mapKittiStreet(const std::string& D, const fs::path& dir, int last = -1)
 {
 	const auto rawlog = (dir / "k.rawlog").string();
 	auto r = test::runCommand(test::bin("kitti2rawlog") + " --velodyne " + D +
@@ -276,8 +276,37 @@ void mapKittiStreet(const std::string& D, const fs::path& dir)
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog +
 	                     " --config slam --quiet --out " + (dir / "run").string() + " --map-out " +
-	                     (dir / "map").string());
+	                     (dir / "map").string() +
+	                     (last >= 0 ? " --last " + std::to_string(last) : std::string()));
 	ASSERT_EQ(r.exitCode, 0) << r.output;
+}
+
+/** slam.yaml with its vocabulary path made absolute (to be written into `dir`). */
+std::string slamYaml()
+{
+	std::ifstream in(test::sourcePath("share/rasterslam/config/slam.yaml"));
+	std::string y((std::istreambuf_iterator<char>(in)), {});
+	return std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
+	                          "vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
+}
+
+/** `rasterslam relocalize` of `rawlog` in dir/map with config `cfg` into dir/out, evaluated
+ *  against dir/q.tum and the map run's trajectories (dir/run): the evaluator's JSON. */
+nlohmann::json relocalizeAndEvaluate(const fs::path& dir, const fs::path& cfg,
+                                     const std::string& rawlog, const std::string& out)
+{
+	const auto rr = test::runCommand(test::bin("rasterslam") + " relocalize --quiet --map " +
+	                                 (dir / "map").string() + " --config " + cfg.string() +
+	                                 " --rawlog " + rawlog + " --out " + (dir / out).string());
+	EXPECT_EQ(rr.exitCode, 0) << rr.output;
+	const auto e = test::runCommand(test::bin("rasterslam-eval") + " reloc --json --reloc " +
+	                                (dir / out / "relocalization.txt").string() + " --gt " +
+	                                (dir / "q.tum").string() + " --map-gt " +
+	                                (dir / "run" / "groundtruth.tum").string() + " --map-est " +
+	                                (dir / "run" / "trajectory.tum").string());
+	EXPECT_EQ(e.exitCode, 0) << e.output;
+	std::printf("%s: %s\n", out.c_str(), e.output.c_str());
+	return test::parseJson(e.output);
 }
 }  // namespace
 
@@ -401,34 +430,14 @@ TEST(Relocalization, TurnedQueryImagesOnTheKittiStreet)
 	                     (dir / "q.tum").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 
-	std::ifstream in(test::sourcePath("share/rasterslam/config/slam.yaml"));
-	std::string y((std::istreambuf_iterator<char>(in)), {});
-	y = std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
-	                       "vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
-	y = std::regex_replace(y, std::regex("max_candidates: 5 "), "max_candidates: 1 ");
+	const std::string y =
+	    std::regex_replace(slamYaml(), std::regex("max_candidates: 5 "), "max_candidates: 1 ");
 	const auto plainCfg = dir / "one.yaml", turnsCfg = dir / "turns.yaml";
 	std::ofstream(plainCfg) << y;
 	std::ofstream(turnsCfg) << std::regex_replace(y, std::regex("\n    min_score:"),
 	                                              "\n    query_turns: 4\n    min_score:");
-	const auto relocalize =
-	    [&](const std::filesystem::path& cfg, const std::string& rawlogIn, const std::string& out)
-	{
-		const auto rr =
-		    test::runCommand(test::bin("rasterslam") + " relocalize --quiet --map " +
-		                     (dir / "map").string() + " --config " + cfg.string() + " --rawlog " +
-		                     rawlogIn + " --out " + (dir / out).string());
-		EXPECT_EQ(rr.exitCode, 0) << rr.output;
-		const auto e = test::runCommand(test::bin("rasterslam-eval") + " reloc --json --reloc " +
-		                                (dir / out / "relocalization.txt").string() + " --gt " +
-		                                (dir / "q.tum").string() + " --map-gt " +
-		                                (dir / "run" / "groundtruth.tum").string() + " --map-est " +
-		                                (dir / "run" / "trajectory.tum").string());
-		EXPECT_EQ(e.exitCode, 0) << e.output;
-		std::printf("%s: %s\n", out.c_str(), e.output.c_str());
-		return test::parseJson(e.output);
-	};
-	const auto plain = relocalize(plainCfg, query, "plain");
-	const auto turned = relocalize(turnsCfg, query, "turned");
+	const auto plain = relocalizeAndEvaluate(dir, plainCfg, query, "plain");
+	const auto turned = relocalizeAndEvaluate(dir, turnsCfg, query, "turned");
 	ASSERT_EQ(turned["queries"].get<std::size_t>(), 48u);
 	// README: 47 of 48 within 0.3 m and 1 degree with the turned images and without, none
 	// wrong: on a street of 5 local maps the ranking has little to decide (with the turned
@@ -455,6 +464,74 @@ TEST(Relocalization, TurnedQueryImagesOnTheKittiStreet)
 	ASSERT_EQ(lines.size(), 40u);
 	for (const auto& l : lines)
 		EXPECT_FALSE(l.found) << l.stamp << " placed with " << l.inliers << " inliers";
+}
+
+// loop_detector.relocalization_surface_search: revisits 15-30 m beyond the mapped part of the
+// KITTI street (the first 51 scans mapped, the grid rendered over the whole street) match too
+// few ORB descriptors to verify; their surfaces are searched with no prior (planarSearch, then
+// ICP), the features matched again only near where the surfaces put them, and found, none
+// wrong; another town's scans are still placed nowhere.
+TEST(Relocalization, FarRevisitsFoundOnTheSurfacesOfTheKittiStreet)
+{
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto D = test::sharedData("kitti00-0000-0100");
+	test::ScopedTempDir tmp("reloc-far");
+	const auto dir = tmp.path();
+	ASSERT_NO_FATAL_FAILURE(mapKittiStreet(D, dir, 50));
+	const auto query = (dir / "q.rawlog").string();
+	auto r = test::runCommand(test::bin("rasterslam-sim") + " --kitti " + D +
+	                          " --every 10 --compress 0 -o " + query + " --gt-tum " +
+	                          (dir / "q.tum").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const std::string y = slamYaml();
+	const auto plainCfg = dir / "plain.yaml", surfaceCfg = dir / "surface.yaml";
+	std::ofstream(plainCfg) << y;
+	std::ofstream(surfaceCfg) << std::regex_replace(
+	    y, std::regex("\n    min_score:"),
+	    "\n    relocalization_surface_search: true\n    min_score:");
+	const auto plain = relocalizeAndEvaluate(dir, plainCfg, query, "plain");
+	const auto surface = relocalizeAndEvaluate(dir, surfaceCfg, query, "surface");
+	ASSERT_EQ(surface["queries"].get<std::size_t>(), 80u);
+	const auto far = [](const nlohmann::json& j, const char* what)
+	{
+		std::size_t n = 0;
+		for (const auto& [k, g] : j["groups"].items())
+			if (k.find("15-30m") != std::string::npos)
+				n += g[what].get<std::size_t>();
+		return n;
+	};
+	ASSERT_EQ(far(surface, "queries"), 18u);  // 9 each way
+	// README: 7 -> 10 of these 18 within 0.3 m and 1 degree, none wrong (on the 160-pose
+	// grid 10 -> 20 of 30); every query found before is still found.
+	EXPECT_GE(far(surface, "correct"), 9u);
+	EXPECT_GE(far(surface, "correct"), far(plain, "correct") + 2);
+	EXPECT_GE(surface["correct"].get<std::size_t>(), plain["correct"].get<std::size_t>());
+	EXPECT_EQ(surface["wrong"].get<std::size_t>(), 0u);
+	std::size_t bySurface = 0;
+	for (const auto& l : readReloc(dir / "surface" / "relocalization.txt"))
+		if (l.found && l.reason == "surface")
+		{
+			bySurface++;
+			// Matched only near where the surfaces put them, the features held the pose:
+			// surface_search_min_inliers (30).
+			EXPECT_GE(l.inliers, 30u);
+			EXPECT_GE(l.score, 0.3);  // min_score holds for it too
+		}
+	EXPECT_GE(bySurface, 2u);
+
+	// Another town's scans, searched on their surfaces too: placed nowhere.
+	const auto other = (dir / "town.rawlog").string();
+	r = test::runCommand(test::bin("rasterslam-sim") + " --scenario " +
+	                     test::sourcePath("rawlogs/town-loop.yaml") + " --scans 40 -o " + other);
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	r = test::runCommand(test::bin("rasterslam") + " relocalize --quiet --map " +
+	                     (dir / "map").string() + " --config " + surfaceCfg.string() +
+	                     " --rawlog " + other + " --out " + (dir / "other").string());
+	ASSERT_EQ(r.exitCode, 0) << r.output;
+	const auto lines = readReloc(dir / "other" / "relocalization.txt");
+	ASSERT_EQ(lines.size(), 40u);
+	for (const auto& l : lines)
+		EXPECT_FALSE(l.found) << l.stamp << " placed (" << l.reason << ")";
 }
 
 TEST(Relocalization, EvalRefusesAMalformedFileNamingIt)

@@ -56,6 +56,16 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	icp_.maxIterations = p.getInt("icp_max_iterations", 30);
 	icpMaxCorrection_m_ = p.getDouble("icp_max_correction_m", icpMaxCorrection_m_);
 	icpMaxCorrection_deg_ = p.getDouble("icp_max_correction_deg", icpMaxCorrection_deg_);
+	surfaceSearch_ = p.getBool("relocalization_surface_search", surfaceSearch_);
+	surfaceSearchCandidates_ = p.getInt("surface_search_candidates", surfaceSearchCandidates_);
+	surfaceSearchMinOverlap_ = p.getDouble("surface_search_min_overlap", surfaceSearchMinOverlap_);
+	surfaceSearchInlierRatio_ =
+	    p.getDouble("surface_search_inlier_ratio", surfaceSearchInlierRatio_);
+	surfaceSearchMinInliers_ = p.getInt("surface_search_min_inliers", surfaceSearchMinInliers_);
+	surfaceSearchMinAgreeing_ = p.getInt("surface_search_min_agreeing", surfaceSearchMinAgreeing_);
+	planar_.yawStep_deg = p.getDouble("surface_search_yaw_step_deg", planar_.yawStep_deg);
+	planar_.range_m = icpRange_m_;
+	planar_.hypotheses = p.getInt("surface_search_hypotheses", planar_.hypotheses);
 	p.requirePositive(searchRadius_m_, "search_radius_m");
 	p.requireAtLeast(onlineMinMaps_, 2, "online_min_maps");
 	p.requireAtLeast(onlineBranching_, 2, "online_branching");
@@ -90,6 +100,15 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireRange(icp_.maxIterations, 1, 1000, "icp_max_iterations");
 	p.requirePositive(icpMaxCorrection_m_, "icp_max_correction_m");
 	p.requireRange(icpMaxCorrection_deg_, 0, 180, "icp_max_correction_deg");
+	if (surfaceSearch_ && !icpRefine_)
+		p.reject("relocalization_surface_search", "needs icp_refine (the query's surface)");
+	p.requireAtLeast(surfaceSearchCandidates_, 1, "surface_search_candidates");
+	p.requireRange(surfaceSearchMinOverlap_, 0, 1, "surface_search_min_overlap");
+	p.requireAtLeast(surfaceSearchInlierRatio_, 1, "surface_search_inlier_ratio");
+	p.requireAtLeast(surfaceSearchMinInliers_, 3, "surface_search_min_inliers");
+	p.requireAtLeast(surfaceSearchMinAgreeing_, 0, "surface_search_min_agreeing");
+	p.requireRange(planar_.yawStep_deg, 0.1, 90, "surface_search_yaw_step_deg");
+	p.requireRange(planar_.hypotheses, 1, 64, "surface_search_hypotheses");
 
 	orb_ = std::make_unique<features::OrbExtractor>(queryOrb_);
 	vocab_.reset();
@@ -269,6 +288,24 @@ features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm
 	for (auto& i : fit.inliers)
 		i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
 	return fit;
+}
+
+std::size_t BowLoopDetector::agreeingMatches(const Query& q, const LocalMap& lm,
+                                             const Eigen::Isometry3d& T, double within_m) const
+{
+	if (lm.points() == 0 || q.desc.rows == 0)
+		return 0;
+	const auto matches = features::matchMutual(q.desc, descriptorMat(lm.descriptors), match_);
+	const Eigen::Isometry3f Tf = T.cast<float>();
+	const auto w2 = static_cast<float>(within_m * within_m);
+	std::size_t n = 0;
+	for (const auto& mt : matches)
+	{
+		const auto i = static_cast<std::size_t>(mt.b);
+		const Eigen::Vector3f m(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
+		n += (Tf * q.pts[static_cast<std::size_t>(mt.a)] - m).squaredNorm() <= w2;
+	}
+	return n;
 }
 
 uint64_t BowLoopDetector::nearestKeyframe(const LocalMap& lm,

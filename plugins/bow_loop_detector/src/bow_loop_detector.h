@@ -11,6 +11,7 @@
 #include <rasterslam/features/icp.h>
 #include <rasterslam/features/matcher.h>
 #include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/features/planar_search.h>
 #include <rasterslam/features/rigid_ransac.h>
 #include <rasterslam/raster/elevation_image.h>
 
@@ -93,6 +94,36 @@ class BowLoopDetector : public LoopDetector
 	 *  without it. */
 	mutable std::unique_ptr<features::IcpTargetCache> targets_;
 	mutable std::mutex targetsMutex_;
+	/** The ICP target of a local map's surface, from targets_ (call under targetsMutex_). */
+	std::shared_ptr<const features::IcpTarget> targetOf(const LocalMap& lm) const;
+	/** relocalization_surface_search: alignments T_anchor_query of the query's surface on
+	 *  the local map's found with no pose prior and no descriptors: planarSearch's best
+	 *  (x, y, yaw) peaks, each refined by ICP, those whose overlap (the share of the query's
+	 *  points over the local map's footprint that lie on its surface) reaches
+	 *  surface_search_min_overlap, largest overlap first. */
+	struct SurfaceAlignment
+	{
+		Eigen::Isometry3d T;
+		double overlap = 0;
+	};
+	std::vector<SurfaceAlignment> searchOnSurface(const std::vector<Eigen::Vector3f>& surface,
+	                                              const LocalMap& lm) const;
+	/** The query's features matched with the local map's only within guided_gate_m of where
+	 *  `predicted` (T_anchor_query) puts them, then fitted by RANSAC with guided_min_inliers
+	 *  (inliers as query feature indices). */
+	features::RigidResult guidedFit(const Query& q, const LocalMap& lm,
+	                                const Eigen::Isometry3d& predicted, uint32_t seed) const;
+	/** The query's features matched with all of the local map's as verify() matches them
+	 *  (mutual, ratio test: a feature that repeats does not pass), counted where pose T
+	 *  (T_anchor_query) puts the two within `within_m`: evidence of T independent of the
+	 *  surfaces and of any gate. */
+	std::size_t agreeingMatches(const Query& q, const LocalMap& lm, const Eigen::Isometry3d& T,
+	                            double within_m) const;
+	bool surfaceSearch_ = false;
+	int surfaceSearchCandidates_ = 2;
+	double surfaceSearchMinOverlap_ = 0.2, surfaceSearchInlierRatio_ = 2.0;
+	int surfaceSearchMinInliers_ = 30, surfaceSearchMinAgreeing_ = 12;
+	features::PlanarSearchParams planar_;
 	bool icpRefine_ = false;
 	features::IcpParams icp_;
 	double icpRange_m_ = 40, icpMaxCorrection_m_ = 1.0, icpMaxCorrection_deg_ = 3.0;

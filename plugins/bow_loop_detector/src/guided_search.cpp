@@ -10,6 +10,37 @@
 
 using namespace rasterslam;
 
+features::RigidResult BowLoopDetector::guidedFit(const Query& q, const LocalMap& lm,
+                                                 const Eigen::Isometry3d& predicted,
+                                                 uint32_t seed) const
+{
+	const Eigen::Isometry3f pf = predicted.cast<float>();
+	std::vector<Eigen::Vector3f> qInAnchor, lmPts;
+	qInAnchor.reserve(q.pts.size());
+	for (const auto& p : q.pts)
+		qInAnchor.push_back(pf * p);
+	lmPts.reserve(lm.points());
+	for (std::size_t i = 0; i < lm.points(); i++)
+		lmPts.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
+	features::MatchParams mp = match_;
+	mp.gateRadius_m = static_cast<float>(guidedGate_m_);
+	const cv::Mat cand(static_cast<int>(lm.points()), 32, CV_8U,
+	                   const_cast<uint8_t*>(lm.descriptors.data()));
+	const auto matches = features::matchMutual(q.desc, cand, mp, &qInAnchor, &lmPts);
+	std::vector<Eigen::Vector3f> p, m;
+	for (const auto& mt : matches)
+	{
+		p.push_back(q.pts[static_cast<std::size_t>(mt.a)]);
+		m.push_back(lmPts[static_cast<std::size_t>(mt.b)]);
+	}
+	auto params = ransac_;
+	params.minInliers = guidedMinInliers_;
+	auto fit = features::ransacRigid(p, m, params, seed);
+	for (auto& i : fit.inliers)
+		i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
+	return fit;
+}
+
 std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, const KeyframeInfo& kf,
                                                             const Map& map, const PoseView& poses)
 {
@@ -50,30 +81,7 @@ std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, cons
 		// Where the query should be in the anchor's frame; features are paired only where
 		// their predicted positions agree within the gate.
 		const Eigen::Isometry3d predicted = toIsometry(*anchor).inverse() * toIsometry(kf.pose);
-		const Eigen::Isometry3f pf = predicted.cast<float>();
-		std::vector<Eigen::Vector3f> qInAnchor, lmPts;
-		qInAnchor.reserve(q.pts.size());
-		for (const auto& p : q.pts)
-			qInAnchor.push_back(pf * p);
-		lmPts.reserve(lm.points());
-		for (std::size_t i = 0; i < lm.points(); i++)
-			lmPts.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
-		features::MatchParams mp = match_;
-		mp.gateRadius_m = static_cast<float>(guidedGate_m_);
-		const cv::Mat cand(static_cast<int>(lm.points()), 32, CV_8U,
-		                   const_cast<uint8_t*>(lm.descriptors.data()));
-		const auto matches = features::matchMutual(q.desc, cand, mp, &qInAnchor, &lmPts);
-		std::vector<Eigen::Vector3f> p, m;
-		for (const auto& mt : matches)
-		{
-			p.push_back(q.pts[static_cast<std::size_t>(mt.a)]);
-			m.push_back(lmPts[static_cast<std::size_t>(mt.b)]);
-		}
-		auto params = ransac_;
-		params.minInliers = guidedMinInliers_;
-		auto fit = features::ransacRigid(p, m, params, static_cast<uint32_t>(kf.node * 37 + lm.id));
-		for (auto& i : fit.inliers)
-			i = matches[static_cast<std::size_t>(i)].a;  // as query feature indices
+		auto fit = guidedFit(q, lm, predicted, static_cast<uint32_t>(kf.node * 37 + lm.id));
 		LoopDecision d;
 		d.queryStamp = kf.stamp;
 		d.score = q.pts.empty()

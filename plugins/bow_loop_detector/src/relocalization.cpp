@@ -177,6 +177,89 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			res.inliers = std::max(res.inliers, fit.inliers.size());
 		}
 	}
+	if (!res.found && surfaceSearch_ && q.surface)
+	{
+		// No candidate verified on the features: far revisits (15-30 m along the road) match
+		// too few descriptors, while their surfaces still overlap. The best-scored candidates
+		// are searched on the surfaces alone.
+		const auto surface = q.surface();
+		int tried = 0;
+		for (const auto& r : results)
+		{
+			const double score = norm > 1e-6 ? r.score / norm : 0;
+			if (score < minScore_ || tried >= surfaceSearchCandidates_)
+				break;
+			const auto it = map.localMaps.find(entryMap_.at(r.entry));
+			if (it == map.localMaps.end())
+				continue;
+			const auto data = candidate(map, it->first);
+			if (!data)
+				continue;
+			tried++;
+			// The surfaces of streets look alike (another simulated town's scans reach the
+			// same overlaps as true places): the features decide. Matched only near where an
+			// alignment puts them, they must fit a pose within the guided gate of it, and the
+			// best alignment must hold surface_search_inlier_ratio times the inliers of any
+			// other distinct one (a street whose parts repeat fits several).
+			struct Held
+			{
+				Eigen::Isometry3d T;
+				std::size_t inliers = 0;
+			};
+			std::vector<Held> held;
+			for (const auto& a : searchOnSurface(surface, *data))
+			{
+				const auto fit = guidedFit(q, *data, a.T, static_cast<uint32_t>(seed + data->id));
+				const Eigen::Isometry3d off = a.T.inverse() * fit.T;
+				const bool agrees =
+				    fit.ok && off.translation().norm() <= guidedGate_m_ &&
+				    Eigen::AngleAxisd(off.linear()).angle() * 180.0 / M_PI <= guidedGate_deg_;
+				held.push_back({a.T, agrees ? fit.inliers.size() : 0});
+			}
+			std::stable_sort(held.begin(), held.end(),
+			                 [](const Held& x, const Held& y) { return x.inliers > y.inliers; });
+			if (held.empty() || held.front().inliers == 0)
+				continue;
+			std::size_t second = 0;
+			for (std::size_t i = 1; i < held.size(); i++)
+			{
+				const Eigen::Isometry3d d = held.front().T.inverse() * held[i].T;
+				if (d.translation().norm() > planar_.distinct_m ||
+				    Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI > planar_.distinct_deg)
+					second = std::max(second, held[i].inliers);
+			}
+			const bool distinct =
+			    held.front().inliers >= static_cast<std::size_t>(surfaceSearchMinInliers_) &&
+			    static_cast<double>(held.front().inliers) >=
+			        surfaceSearchInlierRatio_ * static_cast<double>(second);
+			const std::size_t agreeing = agreeingMatches(q, *data, held.front().T, 1.0);
+			MRPT_LOG_DEBUG_FMT(
+			    "surface pose on local map %llu: %zu guided inliers, next %zu, %zu agreeing: %s",
+			    static_cast<unsigned long long>(data->id), held.front().inliers, second, agreeing,
+			    distinct && agreeing >= static_cast<std::size_t>(surfaceSearchMinAgreeing_)
+			        ? "taken"
+			        : "refused");
+			if (!distinct || agreeing < static_cast<std::size_t>(surfaceSearchMinAgreeing_))
+				continue;
+			const auto T = std::optional<Eigen::Isometry3d>(held.front().T);
+			const std::size_t inliers = held.front().inliers;
+			const uint64_t kf = nearestKeyframe(*data, *T, poses);
+			double tilt = 0;
+			const auto g = groundAligned(q, *data, kf, *T, map, poses, &tilt);
+			if (!g)
+				continue;
+			res.found = true;
+			res.reason = "surface";
+			res.localMap = data->id;
+			res.keyframe = kf;
+			res.keyframeStamp = map.keyframes.at(kf)->stamp;
+			res.score = score;
+			res.inliers = inliers;  // guided by the surface pose
+			res.keyframePose = poses.at(kf);
+			res.pose = poses.at(data->anchor()) + toPose(*g);
+			return res;
+		}
+	}
 	if (bestMap && q.surface && refineOnSurface(q.surface(), *bestMap, bestT))
 	{
 		res.keyframe = nearestKeyframe(*bestMap, bestT, poses);

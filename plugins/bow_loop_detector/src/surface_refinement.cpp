@@ -6,6 +6,7 @@
 #include <mrpt/system/crc.h>
 
 #include <chrono>
+#include <unordered_set>
 
 #include "bow_loop_detector.h"
 
@@ -26,13 +27,8 @@ std::vector<Eigen::Vector3f> BowLoopDetector::surfaceOf(const LocalMap& lm)
 	return pts;
 }
 
-bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surface,
-                                      const LocalMap& lm, Eigen::Isometry3d& T) const
+std::shared_ptr<const features::IcpTarget> BowLoopDetector::targetOf(const LocalMap& lm) const
 {
-	if (!icpRefine_ || surface.empty() || lm.surfacePoints() < 100)
-		return false;
-	const auto t0 = std::chrono::steady_clock::now();
-	std::lock_guard<std::mutex> lock(targetsMutex_);
 	if (!targets_)
 		targets_ = std::make_unique<features::IcpTargetCache>(4, icp_);
 	// The fingerprint covers the whole surface: a local map still being added to, or another
@@ -41,7 +37,72 @@ bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surfac
 	    (static_cast<uint64_t>(lm.surfaceCm.size()) << 32) |
 	    mrpt::system::compute_CRC32(reinterpret_cast<const uint8_t*>(lm.surfaceCm.data()),
 	                                lm.surfaceCm.size() * sizeof(int16_t));
-	const auto tgt = targets_->get(lm.id, fingerprint, [&lm] { return surfaceOf(lm); });
+	return targets_->get(lm.id, fingerprint, [&lm] { return surfaceOf(lm); });
+}
+
+std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
+    const std::vector<Eigen::Vector3f>& surface, const LocalMap& lm) const
+{
+	std::vector<SurfaceAlignment> fits;
+	if (surface.empty() || lm.surfacePoints() < 100)
+		return fits;
+	const auto t0 = std::chrono::steady_clock::now();
+	const auto hyps = features::planarSearch(surface, surfaceOf(lm), planar_);
+	const auto t1 = std::chrono::steady_clock::now();
+	std::lock_guard<std::mutex> lock(targetsMutex_);
+	const auto tgt = targetOf(lm);
+	// From a peak of the search (a cell and a yaw step off) ICP first reaches farther.
+	auto coarse = icp_;
+	coarse.maxCorrespondence_m = std::max(icp_.maxCorrespondence_m, 3 * planar_.cell_m);
+	// The overlap is counted over the query's points that land where the local map has
+	// points (its footprint, 2 m cells): a query beyond the end of the mapped street is not
+	// to score less than one pulled over the map, where its own surroundings do not fit.
+	const double fcell = 2.0;
+	std::unordered_set<int64_t> footprint;
+	const auto key = [fcell](double x, double y)
+	{
+		return (static_cast<int64_t>(std::floor(x / fcell)) << 24) +
+		       static_cast<int64_t>(std::floor(y / fcell));
+	};
+	for (const auto& p : surfaceOf(lm))
+		footprint.insert(key(p.x(), p.y()));
+	const auto reduced = features::voxelDownsample(surface, icp_.voxel_m);
+	for (const auto& h : hyps)
+	{
+		const auto r0 = features::icpPointToPlane(surface, *tgt, h.T, coarse);
+		const auto r = features::icpPointToPlane(surface, *tgt, r0.T, icp_);
+		std::size_t inside = 0;
+		for (const auto& p : reduced)
+		{
+			const Eigen::Vector3d q = r.T * p.cast<double>();
+			inside += footprint.count(key(q.x(), q.y()));
+		}
+		const double ov = r.converged && inside >= 200 ? double(r.matched) / double(inside) : 0;
+		if (ov >= surfaceSearchMinOverlap_)
+			fits.push_back({r.T, ov});
+	}
+	const auto t2 = std::chrono::steady_clock::now();
+	std::sort(fits.begin(), fits.end(),
+	          [](const SurfaceAlignment& a, const SurfaceAlignment& b)
+	          { return a.overlap > b.overlap; });
+	MRPT_LOG_DEBUG_FMT(
+	    "surface search on local map %llu: %zu of %zu alignments reach the overlap, best %.3f; "
+	    "%.1f + %.1f ms",
+	    static_cast<unsigned long long>(lm.id), fits.size(), hyps.size(),
+	    fits.empty() ? 0.0 : fits.front().overlap,
+	    std::chrono::duration<double, std::milli>(t1 - t0).count(),
+	    std::chrono::duration<double, std::milli>(t2 - t1).count());
+	return fits;
+}
+
+bool BowLoopDetector::refineOnSurface(const std::vector<Eigen::Vector3f>& surface,
+                                      const LocalMap& lm, Eigen::Isometry3d& T) const
+{
+	if (!icpRefine_ || surface.empty() || lm.surfacePoints() < 100)
+		return false;
+	const auto t0 = std::chrono::steady_clock::now();
+	std::lock_guard<std::mutex> lock(targetsMutex_);
+	const auto tgt = targetOf(lm);
 	const auto t1 = std::chrono::steady_clock::now();
 	const auto r = features::icpPointToPlane(surface, *tgt, T, icp_);
 	const auto t2 = std::chrono::steady_clock::now();

@@ -235,7 +235,7 @@ struct LoopDecision
 struct RelocalizationResult
 {
 	bool found = false;
-	std::string reason;  //!< one word: ok, features, candidates, inliers
+	std::string reason;  //!< one word: ok, surface (no features verified it), features, ...
 	uint64_t localMap = 0;
 	uint64_t keyframe = 0;  //!< id of the matched keyframe (most inliers among the map's)
 	double keyframeStamp = -1;

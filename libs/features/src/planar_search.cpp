@@ -1,0 +1,187 @@
+#include <rasterslam/features/planar_search.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/core.hpp>
+#include <unordered_map>
+
+namespace rasterslam::features
+{
+namespace
+{
+struct Span
+{
+	float lo = std::numeric_limits<float>::max();
+	float hi = std::numeric_limits<float>::lowest();
+};
+
+/** Centres (x, y) of the cells whose points span at least minSpan_m in height. */
+std::vector<Eigen::Vector2f> structureCells(const std::vector<Eigen::Vector3f>& pts,
+                                            const PlanarSearchParams& p, double range_m)
+{
+	std::unordered_map<int64_t, Span> cells;
+	const double inv = 1.0 / p.cell_m;
+	const double r2 = range_m * range_m;
+	for (const auto& q : pts)
+	{
+		if (!q.allFinite() || double(q.x()) * q.x() + double(q.y()) * q.y() > r2)
+			continue;
+		const auto cx = static_cast<int64_t>(std::floor(q.x() * inv));
+		const auto cy = static_cast<int64_t>(std::floor(q.y() * inv));
+		if (std::abs(cx) > (1 << 20) || std::abs(cy) > (1 << 20))
+			continue;
+		auto& s = cells[(cx << 22) + cy];
+		s.lo = std::min(s.lo, q.z());
+		s.hi = std::max(s.hi, q.z());
+	}
+	std::vector<Eigen::Vector2f> out;
+	for (const auto& [key, s] : cells)
+		if (s.hi - s.lo >= p.minSpan_m)
+		{
+			// key = cx * 2^22 + cy with |cy| < 2^21: undo it without shifting negatives.
+			int64_t cy = key % (int64_t(1) << 22);
+			if (cy >= (int64_t(1) << 21))
+				cy -= int64_t(1) << 22;
+			else if (cy < -(int64_t(1) << 21))
+				cy += int64_t(1) << 22;
+			const int64_t cx = (key - cy) / (int64_t(1) << 22);
+			out.emplace_back(static_cast<float>((cx + 0.5) * p.cell_m),
+			                 static_cast<float>((cy + 0.5) * p.cell_m));
+		}
+	std::sort(out.begin(), out.end(),
+	          [](const auto& a, const auto& b)
+	          { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
+	return out;
+}
+
+struct Peak
+{
+	double yaw = 0, x = 0, y = 0, score = 0;
+};
+
+double yawGap_deg(double a, double b)
+{
+	double d = std::fmod(std::abs(a - b), 2 * M_PI);
+	return std::min(d, 2 * M_PI - d) * 180.0 / M_PI;
+}
+}  // namespace
+
+std::vector<PlanarHypothesis> planarSearch(const std::vector<Eigen::Vector3f>& source,
+                                           const std::vector<Eigen::Vector3f>& target,
+                                           const PlanarSearchParams& p)
+{
+	std::vector<PlanarHypothesis> out;
+	if (!(p.cell_m > 0) || !(p.yawStep_deg > 0) || p.hypotheses < 1)
+		return out;
+	const auto src = structureCells(source, p, p.range_m);
+	const auto tgt = structureCells(target, p, std::numeric_limits<double>::max());
+	if (src.empty() || tgt.empty())
+		return out;
+
+	// The target's view, each structure cell spread over its neighbours (1, 1/2 beside,
+	// 1/4 diagonally) so that a turn between two yaw steps still meets it.
+	Eigen::Vector2f lo = tgt.front(), hi = tgt.front();
+	for (const auto& c : tgt)
+	{
+		lo = lo.cwiseMin(c);
+		hi = hi.cwiseMax(c);
+	}
+	const double cell = p.cell_m;
+	const float x0 = lo.x() - static_cast<float>(cell), y0 = lo.y() - static_cast<float>(cell);
+	const int wt = static_cast<int>(std::ceil((hi.x() - x0) / cell)) + 2;
+	const int ht = static_cast<int>(std::ceil((hi.y() - y0) / cell)) + 2;
+	const int half = static_cast<int>(std::ceil(p.range_m / cell)) + 1;
+	const int ws = 2 * half + 1;  // the source's view: its origin in the middle
+	const int rows = cv::getOptimalDFTSize(ht + ws - 1);
+	const int cols = cv::getOptimalDFTSize(wt + ws - 1);
+	cv::Mat T = cv::Mat::zeros(rows, cols, CV_32F);
+	for (const auto& c : tgt)
+	{
+		const int u = static_cast<int>(std::floor((c.x() - x0) / cell));
+		const int v = static_cast<int>(std::floor((c.y() - y0) / cell));
+		for (int dv = -1; dv <= 1; dv++)
+			for (int du = -1; du <= 1; du++)
+			{
+				const float w = (du == 0 ? 1.f : 0.5f) * (dv == 0 ? 1.f : 0.5f);
+				float& t = T.at<float>(v + dv, u + du);
+				t = std::max(t, w);
+			}
+	}
+	cv::Mat FT;
+	cv::dft(T, FT, 0, ht + 1);
+
+	std::vector<Peak> peaks;
+	cv::Mat S(rows, cols, CV_32F), FS, C;
+	const int steps = std::max(1, static_cast<int>(std::lround(360.0 / p.yawStep_deg)));
+	for (int k = 0; k < steps; k++)
+	{
+		const double yaw = 2 * M_PI * k / steps;
+		const float c = static_cast<float>(std::cos(yaw)), s = static_cast<float>(std::sin(yaw));
+		S.setTo(0);
+		int n = 0;
+		for (const auto& q : src)
+		{
+			const float x = c * q.x() - s * q.y(), y = s * q.x() + c * q.y();
+			const int u = static_cast<int>(std::floor(x / cell)) + half;
+			const int v = static_cast<int>(std::floor(y / cell)) + half;
+			if (u < 0 || v < 0 || u >= ws || v >= ws)
+				continue;
+			float& e = S.at<float>(v, u);
+			n += e == 0;
+			e = 1;
+		}
+		if (n == 0)
+			continue;
+		cv::dft(S, FS, 0, ws);
+		// C(d) = sum over p of T(p + d) S(p): source cell p lands on target cell p + d.
+		cv::mulSpectrums(FT, FS, C, 0, true);
+		cv::dft(C, C, cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
+		const double norm = std::min<double>(n, static_cast<double>(tgt.size()));
+		// The best three peaks of this yaw, each with its 5 x 5 neighbourhood then cleared.
+		for (int j = 0; j < 3; j++)
+		{
+			double best = 0;
+			cv::Point at;
+			cv::minMaxLoc(C, nullptr, &best, nullptr, &at);
+			if (best <= 0)
+				break;
+			// Shifts wrap around: d in [-(ws - 1), h - 1] is stored modulo the size.
+			const int du = at.x >= wt ? at.x - cols : at.x;
+			const int dv = at.y >= ht ? at.y - rows : at.y;
+			Peak pk;
+			pk.yaw = yaw;
+			pk.x = x0 + (du + half) * cell;
+			pk.y = y0 + (dv + half) * cell;
+			pk.score = std::min(1.0, best / norm);
+			peaks.push_back(pk);
+			for (int dy = -2; dy <= 2; dy++)
+				for (int dx = -2; dx <= 2; dx++)
+					C.at<float>((at.y + dy + rows) % rows, (at.x + dx + cols) % cols) = 0;
+		}
+	}
+	std::sort(peaks.begin(), peaks.end(),
+	          [](const Peak& a, const Peak& b) { return a.score > b.score; });
+	std::vector<Peak> kept;
+	for (const auto& pk : peaks)
+	{
+		bool distinct = true;
+		for (const auto& k : kept)
+			if (std::hypot(pk.x - k.x, pk.y - k.y) < p.distinct_m &&
+			    yawGap_deg(pk.yaw, k.yaw) < p.distinct_deg)
+				distinct = false;
+		if (!distinct)
+			continue;
+		kept.push_back(pk);
+		PlanarHypothesis h;
+		h.T.linear() = Eigen::AngleAxisd(pk.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+		h.T.translation() = Eigen::Vector3d(pk.x, pk.y, 0);
+		h.score = pk.score;
+		out.push_back(h);
+		if (static_cast<int>(out.size()) >= p.hypotheses)
+			break;
+	}
+	return out;
+}
+
+}  // namespace rasterslam::features
