@@ -478,17 +478,21 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		if (kf.afterLoss || kf.locatedAt)
 			prevBow_.reset();  // after a loss (relocalized or not) the previous keyframe is
 			                   // not known to be near this one
+		// What the keyframe's own halves score: the scale of its turned images, and the
+		// normalizer of a keyframe with no previous one; computed once if either needs it.
+		const double own = db_.size() > 0 && (turned || (!imageQuery && !prevBow_))
+		                       ? selfScore(descriptorsOf(q.desc))
+		                       : 0;
 		const auto results = db_.size() == 0 ? std::vector<bow::Database::Result>{}
-		                     : turned        ? queryWithTurns(b, selfScore(descriptorsOf(q.desc)),
-		                                                      turnedViews(*kf.scan, *kf.raster),
-		                                                      static_cast<std::size_t>(maxResults_))
-		                                     : db_.query(b, static_cast<std::size_t>(maxResults_));
+		                     : turned ? queryWithTurns(b, own, turnedViews(*kf.scan, *kf.raster),
+		                                               static_cast<std::size_t>(maxResults_))
+		                              : db_.query(b, static_cast<std::size_t>(maxResults_));
 		// An image query shares most of its keyframes with the previous one, whose score says
 		// nothing of a place: it is normalized by its own halves.
 		const double norm = results.empty() ? 0
 		                    : imageQuery    ? selfScore(imageDesc)
 		                    : prevBow_      ? bow::Vocabulary::score(b, *prevBow_)
-		                                    : selfScore(descriptorsOf(q.desc));
+		                                    : own;
 		int examined = 0;
 		for (const auto& r : results)
 		{

@@ -302,14 +302,24 @@ std::optional<Eigen::Isometry3d> BowLoopDetector::groundAligned(
 	return T_anchor_kf * out;
 }
 
-bow::BowVector BowLoopDetector::canonicalWords(const Scan& scan, const RasterFrame& raster) const
+namespace
 {
-	const auto yaw = static_cast<float>(raster::dominantEdgeAngle(raster.image.asCvMatRef()));
+/** The ground plane a RasterFrame was made with. */
+raster::Plane planeOf(const RasterFrame& raster)
+{
 	raster::Plane plane;
 	plane.valid = raster.groundValid;
 	plane.n =
 	    Eigen::Vector3f(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
 	plane.d = raster.groundD;
+	return plane;
+}
+}  // namespace
+
+bow::BowVector BowLoopDetector::canonicalWords(const Scan& scan, const RasterFrame& raster) const
+{
+	const auto yaw = static_cast<float>(raster::dominantEdgeAngle(raster.image.asCvMatRef()));
+	const auto plane = planeOf(raster);
 	RasterFrame turned;
 	raster::rasterizeElevationTurned(scan.points, plane, raster::RasterParams(), yaw, turned);
 	std::vector<cv::KeyPoint> kps;
@@ -323,11 +333,7 @@ bow::BowVector BowLoopDetector::canonicalWords(const Scan& scan, const RasterFra
 std::vector<BowLoopDetector::TurnedView> BowLoopDetector::turnedViews(
     const Scan& scan, const RasterFrame& raster) const
 {
-	raster::Plane plane;
-	plane.valid = raster.groundValid;
-	plane.n =
-	    Eigen::Vector3f(raster.groundNormal[0], raster.groundNormal[1], raster.groundNormal[2]);
-	plane.d = raster.groundD;
+	const auto plane = planeOf(raster);
 	std::vector<TurnedView> out;
 	for (int k = 1; k < queryTurns_; k++)
 	{
