@@ -20,6 +20,8 @@ struct Span
 std::vector<Eigen::Vector2f> structureCells(const std::vector<Eigen::Vector3f>& pts,
                                             const PlanarSearchParams& p, double range_m)
 {
+	// Cells within +-2^20 of the origin, packed as non-negative (cx + h) * 2h + (cy + h).
+	constexpr int64_t kHalf = int64_t(1) << 20;
 	std::unordered_map<int64_t, Span> cells;
 	const double inv = 1.0 / p.cell_m;
 	const double r2 = range_m * range_m;
@@ -27,11 +29,11 @@ std::vector<Eigen::Vector2f> structureCells(const std::vector<Eigen::Vector3f>& 
 	{
 		if (!q.allFinite() || double(q.x()) * q.x() + double(q.y()) * q.y() > r2)
 			continue;
-		const auto cx = static_cast<int64_t>(std::floor(q.x() * inv));
-		const auto cy = static_cast<int64_t>(std::floor(q.y() * inv));
-		if (std::abs(cx) > (1 << 20) || std::abs(cy) > (1 << 20))
+		const double fx = std::floor(q.x() * inv), fy = std::floor(q.y() * inv);
+		if (std::abs(fx) >= double(kHalf) || std::abs(fy) >= double(kHalf))
 			continue;
-		auto& s = cells[(cx << 22) + cy];
+		const auto cx = static_cast<int64_t>(fx), cy = static_cast<int64_t>(fy);
+		auto& s = cells[(cx + kHalf) * (2 * kHalf) + (cy + kHalf)];
 		s.lo = std::min(s.lo, q.z());
 		s.hi = std::max(s.hi, q.z());
 	}
@@ -39,13 +41,7 @@ std::vector<Eigen::Vector2f> structureCells(const std::vector<Eigen::Vector3f>& 
 	for (const auto& [key, s] : cells)
 		if (s.hi - s.lo >= p.minSpan_m)
 		{
-			// key = cx * 2^22 + cy with |cy| < 2^21: undo it without shifting negatives.
-			int64_t cy = key % (int64_t(1) << 22);
-			if (cy >= (int64_t(1) << 21))
-				cy -= int64_t(1) << 22;
-			else if (cy < -(int64_t(1) << 21))
-				cy += int64_t(1) << 22;
-			const int64_t cx = (key - cy) / (int64_t(1) << 22);
+			const int64_t cx = key / (2 * kHalf) - kHalf, cy = key % (2 * kHalf) - kHalf;
 			out.emplace_back(static_cast<float>((cx + 0.5) * p.cell_m),
 			                 static_cast<float>((cy + 0.5) * p.cell_m));
 		}

@@ -59,9 +59,11 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 	// to score less than one pulled over the map, where its own surroundings do not fit.
 	const double fcell = 2.0;
 	std::unordered_set<int64_t> footprint;
+	// Cells packed as cx * 2^24 + cy (|cy| < 2^23: the surfaces are in centimetres in int16,
+	// +-328 m, and the query's points within icp_range_m of a pose on them).
 	const auto key = [fcell](double x, double y)
 	{
-		return (static_cast<int64_t>(std::floor(x / fcell)) << 24) +
+		return static_cast<int64_t>(std::floor(x / fcell)) * (int64_t(1) << 24) +
 		       static_cast<int64_t>(std::floor(y / fcell));
 	};
 	for (const auto& p : surfaceOf(lm))
