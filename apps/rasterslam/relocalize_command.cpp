@@ -33,7 +33,8 @@ Command addRelocalizeCommand(CLI::App& app)
 	CLI::App* sub = subcommand(
 	    app, "relocalize", "locate every scan of a rawlog in a saved map, with no pose prior",
 	    "Writes DIR2/relocalization.txt: a line a scan with stamp, status, reason (ok, "
-	    "surface: found on the surfaces alone with loop_detector.relocalization_surface_search, "
+	    "surface: aligned on the surfaces, then verified on the features within that alignment's "
+	    "gate, with loop_detector.relocalization_surface_search, "
 	    "features, candidates, score, inliers, ground), the map's local map and keyframe ids, "
 	    "the keyframe's stamp, the BOW score normalized by what the scan's two halves score "
 	    "against each other (candidates under the loop detector's min_score are not "

@@ -94,8 +94,12 @@ std::vector<PlanarHypothesis> planarSearch(const std::vector<Eigen::Vector3f>& s
 	cv::Mat T = cv::Mat::zeros(rows, cols, CV_32F);
 	for (const auto& c : tgt)
 	{
-		const int u = static_cast<int>(std::floor((c.x() - x0) / cell));
-		const int v = static_cast<int>(std::floor((c.y() - y0) / cell));
+		// c - (x0, y0) is a whole number of cells by construction; rounded, not floored, so
+		// that a float error cannot move it to the cell below (or off the view).
+		const int u = static_cast<int>(std::lround((c.x() - x0) / cell));
+		const int v = static_cast<int>(std::lround((c.y() - y0) / cell));
+		if (u < 1 || v < 1 || u + 1 >= wt || v + 1 >= ht)
+			continue;
 		for (int dv = -1; dv <= 1; dv++)
 			for (int du = -1; du <= 1; du++)
 			{
@@ -142,13 +146,16 @@ std::vector<PlanarHypothesis> planarSearch(const std::vector<Eigen::Vector3f>& s
 			cv::minMaxLoc(C, nullptr, &best, nullptr, &at);
 			if (best <= 0)
 				break;
-			// Shifts wrap around: d in [-(ws - 1), h - 1] is stored modulo the size.
+			// Shifts wrap around: d in [-(ws - 1), wt - 1] (columns) and [-(ws - 1), ht - 1]
+			// (rows) is stored modulo the size.
 			const int du = at.x >= wt ? at.x - cols : at.x;
 			const int dv = at.y >= ht ? at.y - rows : at.y;
 			Peak pk;
 			pk.yaw = yaw;
-			pk.x = x0 + (du + half) * cell;
-			pk.y = y0 + (dv + half) * cell;
+			// Target cell u is the structure at x0 + u cell; source cell u' holds the turned
+			// points in [(u' - half) cell, (u' - half + 1) cell), centred half a cell on.
+			pk.x = x0 + (du + half - 0.5) * cell;
+			pk.y = y0 + (dv + half - 0.5) * cell;
 			pk.score = std::min(1.0, best / norm);
 			peaks.push_back(pk);
 			for (int dy = -2; dy <= 2; dy++)

@@ -99,8 +99,8 @@ class BowLoopDetector : public LoopDetector
 	/** relocalization_surface_search: alignments T_anchor_query of the query's surface on
 	 *  the local map's found with no pose prior and no descriptors: planarSearch's best
 	 *  (x, y, yaw) peaks, each refined by ICP, those whose overlap (the share of the query's
-	 *  points over the local map's footprint that lie on its surface) reaches
-	 *  surface_search_min_overlap, largest overlap first. */
+	 *  points over the local map's footprint that lie on its surface; 0 when fewer than 200
+	 *  of them lie over it) reaches surface_search_min_overlap, largest overlap first. */
 	struct SurfaceAlignment
 	{
 		Eigen::Isometry3d T;

@@ -181,7 +181,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 	{
 		// No candidate verified on the features: far revisits (15-30 m along the road) match
 		// too few descriptors, while their surfaces still overlap. The best-scored candidates
-		// are searched on the surfaces alone.
+		// are aligned on the surfaces with no prior; the features, matched only near where an
+		// alignment puts them, then decide.
 		const auto surface = q.surface();
 		int tried = 0;
 		for (const auto& r : results)

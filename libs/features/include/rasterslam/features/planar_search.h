@@ -27,8 +27,9 @@ struct PlanarHypothesis
 {
 	/** The source's pose in the target's frame: x, y and yaw; z 0, no roll or pitch. */
 	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-	/** Structure cells of the source that land on structure of the target (smoothed over a
-	 *  cell), over the smaller of the two counts: 0..1. */
+	/** Structure cells of the turned source that land on structure of the target (smoothed
+	 *  over a cell), over the smaller of the turned source's occupied cells and the target's
+	 *  structure cells: 0..1. */
 	double score = 0;
 };
 
