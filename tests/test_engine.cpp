@@ -6,12 +6,15 @@
 #include <rasterslam/core/heap.h>
 #include <rasterslam/core/plugin_loader.h>
 
+#include <atomic>
+#include <chrono>
 #include <deque>
 #include <filesystem>
 #ifdef __GLIBC__
 #include <malloc.h>
 #endif
 #include <random>
+#include <thread>
 
 #include "test_support.h"
 
@@ -105,8 +108,54 @@ class TwoDecisionsLoopDetector : public LoopDetector
    private:
 	std::size_t made_ = 0;
 };
+
+/** A rasterizer that makes a blank image: enough for the engine to query a loop detector. */
+class BlankRasterizer : public Rasterizer
+{
+	DEFINE_MRPT_OBJECT(BlankRasterizer, rasterslam::test)
+   public:
+	void rasterize(const Scan&, RasterFrame& out) override
+	{
+		out.image = mrpt::img::CImage(8, 8, mrpt::img::CH_GRAY);
+		out.image.filledRectangle(0, 0, 7, 7, mrpt::img::TColor(0, 0, 0));
+	}
+
+   protected:
+	void initializeImpl(ParamReader&) override {}
+};
+
+/** A loop detector that makes one decision a keyframe and counts the relocalizations asked of
+ *  it (the engine asks them holding the map lock), never finding one. */
+class CountingLoopDetector : public LoopDetector
+{
+	DEFINE_MRPT_OBJECT(CountingLoopDetector, rasterslam::test)
+   public:
+	static inline std::atomic<std::size_t> relocalizations{0};
+	void index(const LocalMap&, const std::vector<uint8_t>&) override {}
+	std::vector<LoopConstraint> detect(const KeyframeInfo& kf, const Map&, const PoseView&) override
+	{
+		LoopDecision d;
+		d.queryStamp = kf.stamp;
+		d.reason = "inliers";
+		decisions_.push_back(d);
+		return {};
+	}
+	RelocalizationResult relocalize(const Scan&, const RasterFrame&, const Map&,
+	                                const PoseView&) override
+	{
+		++relocalizations;
+		return {};
+	}
+	std::vector<uint8_t> savePlaceIndex() override { return {}; }
+	void loadPlaceIndex(const Map&) override {}
+
+   protected:
+	void initializeImpl(ParamReader&) override {}
+};
 }  // namespace rasterslam::test
 
+IMPLEMENTS_MRPT_OBJECT(BlankRasterizer, rasterslam::Rasterizer, rasterslam::test)
+IMPLEMENTS_MRPT_OBJECT(CountingLoopDetector, rasterslam::LoopDetector, rasterslam::test)
 IMPLEMENTS_MRPT_OBJECT(FixedStepOdometry, rasterslam::Odometry, rasterslam::test)
 IMPLEMENTS_MRPT_OBJECT(EmptyMapManager, rasterslam::MapManager, rasterslam::test)
 IMPLEMENTS_MRPT_OBJECT(TwoDecisionsLoopDetector, rasterslam::LoopDetector, rasterslam::test)
@@ -115,6 +164,8 @@ MRPT_INITIALIZER(register_test_plugins)
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::FixedStepOdometry));
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::EmptyMapManager));
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::TwoDecisionsLoopDetector));
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::BlankRasterizer));
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::CountingLoopDetector));
 }
 
 namespace
@@ -222,6 +273,47 @@ TEST(Engine, LoopDecisionsAreHandedOverAsTheRunGoesWhenAsked)
 	ASSERT_EQ(inliers.size(), 20u);
 	for (std::size_t i = 0; i < inliers.size(); i++)
 		EXPECT_EQ(inliers[i], i);
+}
+
+TEST(Engine, TheMapIsUnlockedWhileDecisionsAreHandedOver)
+{
+	// The receiver of the decisions may take its time (rasterslam run writes them to a file):
+	// meanwhile the tracking must be able to take the map lock. Here a session seeking its
+	// anchor in a prior map asks the loop detector a relocalization at every keyframe, under
+	// that lock; during the first hand-over the test waits for such a request. Were the map
+	// still locked, none could come before the hand-over returns.
+	const auto cfg = yaml::FromText(
+	    "rasterizer: {class: rasterslam::test::BlankRasterizer}\n"
+	    "odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 3}}\n"
+	    "map_manager: {class: rasterslam::test::EmptyMapManager}\n"
+	    "loop_detector: {class: rasterslam::test::CountingLoopDetector}\n");
+	auto& asked = test::CountingLoopDetector::relocalizations;
+	asked = 0;
+	std::size_t handOvers = 0;
+	bool askedDuringHandOver = false;
+	RunOptions o;
+	o.relocalizeFirstScan = true;  // never found: a relocalization at every keyframe
+	o.realtime = true;             // the tracking does not wait for the back end
+	o.rate = 10;
+	o.onLoopDecisions = [&](std::vector<LoopDecision>&&)
+	{
+		if (handOvers++ > 0)
+			return;
+		const std::size_t before = asked;
+		const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+		while (asked == before && std::chrono::steady_clock::now() < until)
+			std::this_thread::sleep_for(std::chrono::milliseconds(1));
+		askedDuringHandOver = asked > before;
+	};
+	Engine e(cfg, "t.yaml");
+	VectorSource src(makeScans(30, false, CPose3D()));
+	const auto res = e.run(src, o);
+	EXPECT_EQ(res.keyframes, 10u);
+	EXPECT_FALSE(res.localized);
+	EXPECT_GE(asked.load(), 2u);
+	ASSERT_GE(handOvers, 1u);
+	EXPECT_TRUE(askedDuringHandOver)
+	    << "no relocalization could start while the decisions were handed over";
 }
 
 TEST(Engine, KeyframesAndAPoseForEveryScan)
