@@ -20,6 +20,7 @@
 #include <rasterslam/features/rigid_ransac.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/trajectory_io.h>
+#include <rasterslam/places/turned_views.h>
 #include <rasterslam/raster/elevation_image.h>
 #include <rasterslam/sim/cloud_world.h>
 #include <rasterslam/sim/simulator.h>
@@ -84,7 +85,7 @@ struct Described
 	mrpt::poses::CPose3D frame;  //!< of the image, in the simulated world
 	/** --query-turns: the words and normalizer of the same points rasterized turned by
 	 *  k * 90 / N degrees, k = 1..N-1 (queries only). */
-	std::vector<std::pair<bow::BowVector, double>> turns;
+	std::vector<places::TurnedView> turns;
 };
 
 struct Place
@@ -162,28 +163,6 @@ RasterFrame rasterOf(const Scan& scan, uint32_t seed, raster::Plane* planeOut = 
 	return f;
 }
 
-/** --query-turns N: a query's points rasterized again turned by k * 90 / N degrees (k = 1..N-1)
- *  and described; a turn of 90 degrees maps the pixel grid onto itself, so one of the N images
- *  lies within 45 / N degrees of any place's grid. */
-void addTurns(Described& d, const std::vector<PointXYZI>& pts, const raster::Plane& plane,
-              const raster::RasterParams& rp, const bow::Vocabulary& vocab,
-              features::OrbExtractor& orb)
-{
-	for (int k = 1; k < gQueryTurns; k++)
-	{
-		const auto yaw = static_cast<float>(k * (M_PI / 2) / gQueryTurns);
-		RasterFrame f;
-		raster::rasterizeElevationTurned(pts, plane, rp, yaw, f);
-		std::vector<cv::KeyPoint> kps;
-		cv::Mat desc;
-		orb.extract(f.image.asCvMatRef(), kps, desc);
-		const auto dd = bow::toDescriptors(desc.ptr<uint8_t>(), desc.empty() ? 0 : desc.rows);
-		bow::BowVector w;
-		vocab.transform(dd, w);
-		d.turns.emplace_back(std::move(w), vocab.selfScore(dd));
-	}
-}
-
 /** A scan's image described; its normalizer (as the loop detector normalizes a query with
  *  no previous keyframe) is the score of its even features against its odd ones. */
 Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
@@ -193,7 +172,8 @@ Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
 	raster::Plane plane;
 	auto d = describe(rasterOf(scan, seed, &plane), scan.points, vocab, orb, pose);
 	if (query)
-		addTurns(d, scan.points, plane, raster::RasterParams(), vocab, orb);
+		d.turns = places::turnedViews(scan.points, plane, raster::RasterParams(), gQueryTurns,
+		                              vocab, orb);  // as the loop detector makes them
 	return d;
 }
 
@@ -221,7 +201,8 @@ Described localMapPlace(const std::vector<Scan>& scans,
 	raster::rasterizeElevation(pts, raster::Plane(), mp, img);
 	auto d = describe(img, pts, vocab, orb, poses[0]);
 	if (query)
-		addTurns(d, pts, raster::Plane(), raster::localMapRasterParams(), vocab, orb);
+		d.turns = places::turnedViews(pts, raster::Plane(), raster::localMapRasterParams(),
+		                              gQueryTurns, vocab, orb);
 	return d;
 }
 

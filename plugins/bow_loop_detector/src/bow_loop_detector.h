@@ -13,6 +13,7 @@
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/planar_search.h>
 #include <rasterslam/features/rigid_ransac.h>
+#include <rasterslam/places/turned_views.h>
 #include <rasterslam/raster/elevation_image.h>
 
 #include <Eigen/Dense>
@@ -67,7 +68,7 @@ class BowLoopDetector : public LoopDetector
 		 *  frame), when it has one; called only once a place is found. */
 		std::function<std::vector<Eigen::Vector3f>()> surface;
 	};
-	using TurnedView = std::pair<bow::BowVector, double>;
+	using TurnedView = places::TurnedView;
 	/** What a place scores against itself: the BOW score of a query's even features against
 	 *  its odd ones (the normalizer of a query with no previous keyframe); 0 under 40 features. */
 	double selfScore(const std::vector<bow::Descriptor>& desc) const;

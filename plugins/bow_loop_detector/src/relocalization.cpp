@@ -334,22 +334,8 @@ bow::BowVector BowLoopDetector::canonicalWords(const Scan& scan, const RasterFra
 std::vector<BowLoopDetector::TurnedView> BowLoopDetector::turnedViews(
     const Scan& scan, const RasterFrame& raster) const
 {
-	const auto plane = planeOf(raster);
-	std::vector<TurnedView> out;
-	for (int k = 1; k < queryTurns_; k++)
-	{
-		RasterFrame turned;
-		raster::rasterizeElevationTurned(scan.points, plane, raster::RasterParams(),
-		                                 static_cast<float>(k * (M_PI / 2) / queryTurns_), turned);
-		std::vector<cv::KeyPoint> kps;
-		cv::Mat desc;
-		orb_->extract(turned.image.asCvMatRef(), kps, desc);
-		const auto d = descriptorsOf(desc);
-		bow::BowVector b;
-		vocab_->transform(d, b);
-		out.emplace_back(std::move(b), selfScore(d));
-	}
-	return out;
+	return places::turnedViews(scan.points, planeOf(raster), raster::RasterParams(), queryTurns_,
+	                           *vocab_, *orb_);
 }
 
 std::vector<bow::Database::Result> BowLoopDetector::queryWithTurns(
