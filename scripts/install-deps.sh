@@ -12,6 +12,7 @@ PKGS=(
   libmrpt-dev mrpt-apps
   libgtest-dev libgmock-dev
   zlib1g-dev
+  libjemalloc-dev
   libceres-dev
   libcli11-dev nlohmann-json3-dev
   libyaml-cpp-dev

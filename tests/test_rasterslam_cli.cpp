@@ -156,6 +156,11 @@ TEST(RasterslamCli, DefaultRunIsTheWholeSystemAndNamedConfigsWork)
 	EXPECT_EQ(cfg["loop_detector"]["class"].as<std::string>(), "rasterslam::BowLoopDetector");
 	EXPECT_EQ(cfg["optimizer"]["class"].as<std::string>(), "rasterslam::CeresOptimizer");
 	EXPECT_GE(full["counts"]["local_maps"].as<int>(), 1);
+	// The allocator the build linked the program with (jemalloc where found: a link that
+	// dropped it would leave glibc's); jemalloc returns memory by itself, so no trim runs.
+	EXPECT_EQ(full["allocator"].as<std::string>(), std::string(RASTERSLAM_ALLOCATOR));
+	if (std::string(RASTERSLAM_ALLOCATOR) == "jemalloc")
+		EXPECT_EQ(full["summary"]["memory_trim_ms_total"].as<double>(), 0.0);
 
 	// A shipped config by name: the tracking alone.
 	r = test::runCommand(rs("run --rawlog " + rawlog + " --out " + (dir / "trk").string() +

@@ -3,6 +3,7 @@
 #include <mrpt/system/os.h>
 #include <rasterslam/core/config.h>
 #include <rasterslam/core/engine.h>
+#include <rasterslam/core/heap.h>
 #include <rasterslam/eval/trajectory_metrics.h>
 #include <rasterslam/io/rawlog_source.h>
 #include <rasterslam/io/run_outputs.h>
@@ -403,6 +404,7 @@ int runCommand(const RunArgs& args)
 
 	info["rasterslam_version"] = std::string(RASTERSLAM_VERSION);
 	info["mrpt_version"] = mrpt::system::MRPT_getVersion();
+	info["allocator"] = std::string(heapAllocator());
 	yaml input = yaml::Map();
 	input["rawlog"] = fs::absolute(rawlog).string();
 	input["first"] = opts.first ? static_cast<int>(*opts.first) : -1;

@@ -285,6 +285,9 @@ void Backend::returnFreedMemory()
 	// candidates are blocks of 0.5-2 MB; glibc serves them from the heap once the first one
 	// is freed, and the holes they leave are kept resident: without this, memory climbs by
 	// some 20 MB between trims on a long run. A trim costs about a millisecond.
+	// jemalloc (heapAllocator) returns its pages by itself; glibc's trim would find nothing.
+	if (!trimHeap_)
+		return;
 	if (++kfSinceTrim_ >= 5)
 	{
 		kfSinceTrim_ = 0;

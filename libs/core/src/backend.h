@@ -6,6 +6,7 @@
 #pragma once
 
 #include <rasterslam/core/engine.h>
+#include <rasterslam/core/heap.h>
 
 #include <atomic>
 #include <condition_variable>
@@ -87,6 +88,7 @@ class Backend
 	void workerLoop();
 	void returnFreedMemory();
 	std::size_t kfSinceTrim_ = 0;
+	bool trimHeap_ = std::string(heapAllocator()) == "glibc";
 	double trimMs_ = 0;
 
    public:

@@ -1,3 +1,4 @@
+#include <dlfcn.h>
 #include <rasterslam/core/heap.h>
 
 #include <cstdlib>
@@ -8,8 +9,22 @@
 
 namespace rasterslam
 {
+const char* heapAllocator()
+{
+	// jemalloc's own interface: present only where jemalloc is the process's malloc.
+	static const char* const kind = ::dlsym(RTLD_DEFAULT, "mallctl") ? "jemalloc"
+#ifdef __GLIBC__
+	                                                                 : "glibc";
+#else
+	                                                                 : "system";
+#endif
+	return kind;
+}
+
 std::string keepScanBlocksInHeap()
 {
+	if (std::string(heapAllocator()) == "jemalloc")
+		return "the heap is jemalloc's";
 #ifdef __GLIBC__
 	for (const char* name : {"GLIBC_TUNABLES", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_",
 	                         "MALLOC_TOP_PAD_", "MALLOC_MMAP_MAX_"})

@@ -14,9 +14,16 @@ namespace rasterslam
  * them, scan after scan, and each page is faulted in again: 310 page faults a KITTI scan, about a
  * quarter of the tracking's time on a virtual machine (README, Tracking).
  *
- *  Does nothing, and says why in the returned text, where the heap is not glibc's or where the
+ *  Does nothing, and says why in the returned text, where the heap is not glibc's (jemalloc's,
+ *  see heapAllocator) or where the
  *  user has set glibc's own heap settings (GLIBC_TUNABLES, MALLOC_MMAP_THRESHOLD_,
  *  MALLOC_TRIM_THRESHOLD_, MALLOC_TOP_PAD_, MALLOC_MMAP_MAX_): theirs stand. Returns an empty
  *  text when the policy was applied. */
 std::string keepScanBlocksInHeap();
+
+/** The process's allocator: "jemalloc" when its malloc is jemalloc's (the `rasterslam` program
+ *  is linked with it where the build found it, or it was preloaded), else "glibc" or
+ *  "system". jemalloc keeps its own blocks and returns memory by itself: the glibc policy above
+ *  and the back end's trims are then left out. */
+const char* heapAllocator();
 }  // namespace rasterslam
