@@ -99,13 +99,23 @@ kiss_row() {  # kiss_row OUTDIR JSON1 JSON2: timings.csv is scan,points,read_ms,
     "${3:+$(num %.3f "$(json "$3" .rel_trans_pct)")}" "${3:+$(num %.3f "$(json "$3" .ate_rmse_m)")}"
 }
 
+# The malloc the rasterslam program was linked with (RASTERSLAM_USE_JEMALLOC): KISS-ICP gets
+# the same one, so that the ratios compare the two systems and not two allocators.
+ours_jemalloc="$(ldd "$bin/rasterslam" 2>/dev/null | awk '/libjemalloc/ {print $3; exit}')"
+
 run_kiss() {  # run_kiss BINDIR OUTDIR [kiss_runner options]: one thread, pinned like ours
   local velo="$1" out="$2"; shift 2
   rm -rf "$out"; mkdir -p "$out"
-  # With the heap policy rasterslam sets for itself (apps: keepScanBlocksInHeap), given
-  # through glibc's environment: scan-sized blocks stay in the heap (KITTI: 55.0 -> 51.5 ms).
-  MALLOC_MMAP_THRESHOLD_=33554432 MALLOC_TRIM_THRESHOLD_=1073741824 \
-    $PIN /usr/bin/time -f %M -o "$out/peak_kb" "$kiss/kiss_runner" --velodyne "$velo" --out "$out" --threads 1 "$@" >/dev/null
+  if [ -n "$ours_jemalloc" ]; then
+    # rasterslam runs on jemalloc: KISS-ICP too, preloaded.
+    LD_PRELOAD="$ours_jemalloc" \
+      $PIN /usr/bin/time -f %M -o "$out/peak_kb" "$kiss/kiss_runner" --velodyne "$velo" --out "$out" --threads 1 "$@" >/dev/null
+  else
+    # glibc's malloc with the heap policy rasterslam then sets for itself (keepScanBlocksInHeap),
+    # given through glibc's environment: scan-sized blocks stay in the heap (KITTI: 55.0 -> 51.5 ms).
+    MALLOC_MMAP_THRESHOLD_=33554432 MALLOC_TRIM_THRESHOLD_=1073741824 \
+      $PIN /usr/bin/time -f %M -o "$out/peak_kb" "$kiss/kiss_runner" --velodyne "$velo" --out "$out" --threads 1 "$@" >/dev/null
+  fi
 }
 
 kiss_ratio() {  # kiss_ratio OURS_OUTDIR OURS_JSON KISS_OUTDIR KISS_JSON NAME
@@ -272,7 +282,8 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
   fi
   echo
 done
-echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark)"
+echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark;" \
+  "malloc: ${ours_jemalloc:+jemalloc ($ours_jemalloc) for rasterslam and KISS-ICP}${ours_jemalloc:-glibc's, with rasterslam's heap policy for both})"
 
 # --- Reading alone ---------------------------------------------------------------------------
 # The same 101 KITTI scans from .bin files and from the plain rawlog (what kitti2rawlog and

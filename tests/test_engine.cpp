@@ -279,9 +279,10 @@ TEST(Engine, TheMapIsUnlockedWhileDecisionsAreHandedOver)
 {
 	// The receiver of the decisions may take its time (rasterslam run writes them to a file):
 	// meanwhile the tracking must be able to take the map lock. Here a session seeking its
-	// anchor in a prior map asks the loop detector a relocalization at every keyframe, under
-	// that lock; during the first hand-over the test waits for such a request. Were the map
-	// still locked, none could come before the hand-over returns.
+	// anchor in a prior map asks the loop detector a relocalization under that lock at every
+	// scan (anchor_every_scan, the default). The tracking is held after scan 1 until the first
+	// hand-over (keyframe 0's decision) has begun, and that hand-over waits for the next
+	// request: it can only come if the map is unlocked while the decisions are handed over.
 	const auto cfg = yaml::FromText(
 	    "rasterizer: {class: rasterslam::test::BlankRasterizer}\n"
 	    "odometry: {class: rasterslam::test::FixedStepOdometry, params: {every: 3}}\n"
@@ -289,21 +290,36 @@ TEST(Engine, TheMapIsUnlockedWhileDecisionsAreHandedOver)
 	    "loop_detector: {class: rasterslam::test::CountingLoopDetector}\n");
 	auto& asked = test::CountingLoopDetector::relocalizations;
 	asked = 0;
-	std::size_t handOvers = 0;
+	std::atomic<std::size_t> handOvers{0};
+	std::size_t askedBefore = 0;
 	bool askedDuringHandOver = false;
+	bool heldUntilHandOver = false;
 	RunOptions o;
-	o.relocalizeFirstScan = true;  // never found: a relocalization at every keyframe
+	o.relocalizeFirstScan = true;  // never found: it keeps asking
 	o.realtime = true;             // the tracking does not wait for the back end
 	o.rate = 10;
+	o.onScan = [&](const ScanRecord& rec, double)
+	{
+		if (rec.index != 1)
+			return;
+		const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+		while (handOvers == 0 && std::chrono::steady_clock::now() < until)
+			std::this_thread::sleep_for(std::chrono::milliseconds(1));
+		heldUntilHandOver = handOvers > 0;
+	};
 	o.onLoopDecisions = [&](std::vector<LoopDecision>&&)
 	{
-		if (handOvers++ > 0)
+		if (handOvers > 0)
+		{
+			++handOvers;
 			return;
-		const std::size_t before = asked;
+		}
+		askedBefore = asked.load();
+		++handOvers;  // releases the tracking
 		const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-		while (asked == before && std::chrono::steady_clock::now() < until)
+		while (asked == askedBefore && std::chrono::steady_clock::now() < until)
 			std::this_thread::sleep_for(std::chrono::milliseconds(1));
-		askedDuringHandOver = asked > before;
+		askedDuringHandOver = asked > askedBefore;
 	};
 	Engine e(cfg, "t.yaml");
 	VectorSource src(makeScans(30, false, CPose3D()));
@@ -311,7 +327,8 @@ TEST(Engine, TheMapIsUnlockedWhileDecisionsAreHandedOver)
 	EXPECT_EQ(res.keyframes, 10u);
 	EXPECT_FALSE(res.localized);
 	EXPECT_GE(asked.load(), 2u);
-	ASSERT_GE(handOvers, 1u);
+	ASSERT_GE(handOvers.load(), 1u);
+	ASSERT_TRUE(heldUntilHandOver) << "keyframe 0's decision was not handed over within 20 s";
 	EXPECT_TRUE(askedDuringHandOver)
 	    << "no relocalization could start while the decisions were handed over";
 }

@@ -160,7 +160,9 @@ TEST(RasterslamCli, DefaultRunIsTheWholeSystemAndNamedConfigsWork)
 	// dropped it would leave glibc's); jemalloc returns memory by itself, so no trim runs.
 	EXPECT_EQ(full["allocator"].as<std::string>(), std::string(RASTERSLAM_ALLOCATOR));
 	if (std::string(RASTERSLAM_ALLOCATOR) == "jemalloc")
+	{
 		EXPECT_EQ(full["summary"]["memory_trim_ms_total"].as<double>(), 0.0);
+	}
 
 	// A shipped config by name: the tracking alone.
 	r = test::runCommand(rs("run --rawlog " + rawlog + " --out " + (dir / "trk").string() +

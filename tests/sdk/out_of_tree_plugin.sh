@@ -99,7 +99,7 @@ for f in rasterslamConfig.cmake rasterslamConfigVersion.cmake rasterslamTargets.
 	RasterslamPlugin.cmake; do
 	[ -f "$PKG/$f" ] || fail "$PKG/$f was not installed"
 done
-for lib in core map io raster features bow mapping eval sim; do
+for lib in core map io raster features bow places mapping eval sim; do
 	grep -q "^add_library(rasterslam::$lib SHARED IMPORTED)" "$PKG/rasterslamTargets.cmake" ||
 		fail "$PKG/rasterslamTargets.cmake: no imported target rasterslam::$lib"
 done
