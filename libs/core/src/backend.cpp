@@ -304,6 +304,7 @@ void Backend::process(KeyframeJob& job)
 	StageTimes t;
 	std::unique_lock<std::mutex> mapLock(mapMutex_);
 	std::vector<uint8_t> placeQuery;
+	std::vector<std::vector<uint8_t>> placeQueryTurns;
 	std::vector<LoopDecision> handOver;
 	if (mapManager_)
 	{
@@ -311,6 +312,7 @@ void Backend::process(KeyframeJob& job)
 		auto up = mapManager_->addKeyframe(job.kf, *job.scan, job.raster.get(), poses_);
 		applyMapping(up);
 		placeQuery = std::move(up.placeQuery);
+		placeQueryTurns = std::move(up.placeQueryTurns);
 		// Local BA may have moved this keyframe: the loop query starts from where it is now.
 		job.kf.pose = poses_.at(job.kf.node);
 		t.mapping = msSince(t0);
@@ -322,11 +324,13 @@ void Backend::process(KeyframeJob& job)
 		job.kf.scan = job.scan.get();
 		job.kf.raster = job.raster.get();
 		job.kf.placeQuery = &placeQuery;
+		job.kf.placeQueryTurns = &placeQueryTurns;
 		job.kf.inMapFrame = anchored_;
 		auto loops = loopDetector_->detect(job.kf, mapManager_->map(), poses_);
 		job.kf.scan = nullptr;
 		job.kf.raster = nullptr;
 		job.kf.placeQuery = nullptr;
+		job.kf.placeQueryTurns = nullptr;
 		if (anchored_ && !caughtUp_)
 		{
 			// Anchored since the last keyframe: the keyframes made before are in the map's

@@ -467,9 +467,10 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			b = canonicalWords(*kf.scan, *kf.raster);
 		else
 			vocab_->transform(descriptorsOf(q.desc), b);
-		// query_turns: the keyframe's image turned too (not with image queries: the map
-		// manager makes those).
+		// query_turns: the keyframe's image turned too. An image query is turned by the map
+		// manager that makes it (its place_query_turns), with the extractor of its images.
 		const bool turned = queryTurns_ > 1 && !imageQuery && kf.scan && kf.raster;
+		const bool imageTurned = imageQuery && kf.placeQueryTurns && !kf.placeQueryTurns->empty();
 		// DBoW2 normalizes by the score against the previous keyframe: what a "good" match
 		// looks like here and now. The first keyframe (of a run, after a loss, or after the
 		// online vocabulary was trained again) has none: it is normalized as a relocalization
@@ -483,14 +484,17 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		const double own = db_.size() > 0 && (turned || (!imageQuery && !prevBow_))
 		                       ? selfScore(descriptorsOf(q.desc))
 		                       : 0;
-		const auto results = db_.size() == 0 ? std::vector<bow::Database::Result>{}
-		                     : turned ? queryWithTurns(b, own, turnedViews(*kf.scan, *kf.raster),
-		                                               static_cast<std::size_t>(maxResults_))
-		                              : db_.query(b, static_cast<std::size_t>(maxResults_));
 		// An image query shares most of its keyframes with the previous one, whose score says
 		// nothing of a place: it is normalized by its own halves.
+		const double imageSelf = db_.size() > 0 && imageQuery ? selfScore(imageDesc) : 0;
+		const auto n = static_cast<std::size_t>(maxResults_);
+		const auto results = db_.size() == 0 ? std::vector<bow::Database::Result>{}
+		                     : turned ? queryWithTurns(b, own, turnedViews(*kf.scan, *kf.raster), n)
+		                     : imageTurned
+		                         ? queryWithTurns(b, imageSelf, viewsOf(*kf.placeQueryTurns), n)
+		                         : db_.query(b, n);
 		const double norm = results.empty() ? 0
-		                    : imageQuery    ? selfScore(imageDesc)
+		                    : imageQuery    ? imageSelf
 		                    : prevBow_      ? bow::Vocabulary::score(b, *prevBow_)
 		                                    : own;
 		int examined = 0;

@@ -156,6 +156,9 @@ class BowLoopDetector : public LoopDetector
 	 *  maps the pixel grid onto itself, so one of the images lies within 45 / query_turns
 	 *  degrees of any place's grid. */
 	std::vector<TurnedView> turnedViews(const Scan& scan, const RasterFrame& raster) const;
+	/** The views of turned images whose descriptors (32 bytes each) another plugin made (the
+	 *  map manager's placeQueryTurns). */
+	std::vector<TurnedView> viewsOf(const std::vector<std::vector<uint8_t>>& descriptors) const;
 	/** The database's best `n` for words `b` (normalizer `norm`) and the turned views of the
 	 *  same place, each entry at its best on b's scale (bow::Database::queryViews). */
 	std::vector<bow::Database::Result> queryWithTurns(const bow::BowVector& b, double norm,

@@ -338,6 +338,21 @@ std::vector<BowLoopDetector::TurnedView> BowLoopDetector::turnedViews(
 	                           *vocab_, *orb_);
 }
 
+std::vector<BowLoopDetector::TurnedView> BowLoopDetector::viewsOf(
+    const std::vector<std::vector<uint8_t>>& descriptors) const
+{
+	std::vector<TurnedView> out;
+	for (const auto& blob : descriptors)
+	{
+		const auto d = bow::toDescriptors(blob.data(), blob.size() / 32);
+		TurnedView v;
+		vocab_->transform(d, v.words);
+		v.selfScore = vocab_->selfScore(d);
+		out.push_back(std::move(v));
+	}
+	return out;
+}
+
 std::vector<bow::Database::Result> BowLoopDetector::queryWithTurns(
     const bow::BowVector& b, double norm, const std::vector<TurnedView>& turns, std::size_t n) const
 {

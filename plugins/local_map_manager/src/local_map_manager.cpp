@@ -15,6 +15,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cmath>
 #include <deque>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
@@ -65,11 +66,14 @@ class LocalMapManager : public MapManager
 	/** place_query_keyframes > 0: the descriptors of the image of the last keyframes' clouds
 	 *  (the local map being built around keyframe `kf`) in kf's frame, rasterized as a
 	 *  local-map image is: the loop detector's query, image against image. */
-	std::vector<uint8_t> placeQueryDescriptors(uint64_t kf, const PoseView& poses);
+	/** The loop query's image (place_query_keyframes) and its turned images
+	 *  (place_query_turns) into up.placeQuery and up.placeQueryTurns. */
+	void makePlaceQuery(uint64_t kf, const PoseView& poses, MappingUpdate& up);
 
 	// parameters
 	int keyframesPerMap_ = 5;
 	int placeQueryKeyframes_ = 0;  //!< keyframes in the loop query's image (0: no image)
+	int placeQueryTurns_ = 1;      //!< the query's image also turned by k * 90 / this (k >= 1)
 	double maxExtent_m_ = 40;
 	bool overlap_ = true;
 	bool localBa_ = false;
@@ -126,6 +130,7 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 {
 	keyframesPerMap_ = p.getInt("keyframes_per_map", keyframesPerMap_);
 	placeQueryKeyframes_ = p.getInt("place_query_keyframes", placeQueryKeyframes_);
+	placeQueryTurns_ = p.getInt("place_query_turns", placeQueryTurns_);
 	maxExtent_m_ = p.getDouble("max_extent_m", maxExtent_m_);
 	overlap_ = p.getBool("overlap", overlap_);
 	localBa_ = p.getBool("local_ba", localBa_);
@@ -161,6 +166,11 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	               "keyframes_per_map");
 	p.requireRange(placeQueryKeyframes_, 0, static_cast<double>(LocalMap::kMaxKeyframes),
 	               "place_query_keyframes");
+	p.requireRange(placeQueryTurns_, 1, 16, "place_query_turns");
+	if (placeQueryTurns_ > 1 && placeQueryKeyframes_ == 0)
+		p.reject("place_query_turns", "turns the image of place_query_keyframes, which is 0");
+	if (placeQueryTurns_ > 1 && mapRaster_.canonicalYaw)
+		p.reject("place_query_turns", "and canonical_yaw both turn the query's image: use one");
 	p.requirePositive(maxExtent_m_, "max_extent_m");
 	p.requireAtLeast(ba_.maxIterations, 1, "ba_max_iterations");
 	p.requirePositive(ba_.sigmaXY_m, "ba_sigma_xy_m");
@@ -340,7 +350,7 @@ MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& s
 
 	MappingUpdate up;
 	if (placeQueryKeyframes_ > 0)
-		up.placeQuery = placeQueryDescriptors(k->id, poses);
+		makePlaceQuery(k->id, poses, up);
 	// A local map never spans a gap in tracking: its keyframes' relative poses must be real.
 	if (kf.afterLoss && !open_.empty())
 		finishOpen(poses, up, false);
@@ -690,7 +700,7 @@ std::vector<uint8_t> LocalMapManager::wordsOfImage(const cv::Mat& image)
 	                     : std::vector<uint8_t>{};
 }
 
-std::vector<uint8_t> LocalMapManager::placeQueryDescriptors(uint64_t kf, const PoseView& poses)
+void LocalMapManager::makePlaceQuery(uint64_t kf, const PoseView& poses, MappingUpdate& up)
 {
 	const auto T_world_kf = poses.at(kf);
 	std::vector<PointXYZI> pts;
@@ -702,10 +712,18 @@ std::vector<uint8_t> LocalMapManager::placeQueryDescriptors(uint64_t kf, const P
 		raster::appendMoved(cloud, toIsometry(*pose - T_world_kf).cast<float>(), pts);
 	}
 	if (pts.empty())
-		return {};
+		return;
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
-	return wordsOfImage(img.image.asCvMatRef());
+	up.placeQuery = wordsOfImage(img.image.asCvMatRef());
+	// Rasterized turned, not the image warped: no resampling of the heights.
+	for (int k = 1; k < placeQueryTurns_; k++)
+	{
+		raster::rasterizeElevationTurned(pts, raster::Plane(), mapRaster_,
+		                                 static_cast<float>(k * (M_PI / 2) / placeQueryTurns_),
+		                                 img);
+		up.placeQueryTurns.push_back(wordsOfImage(img.image.asCvMatRef()));
+	}
 }
 
 std::vector<uint8_t> LocalMapManager::wordsOf(const LocalMap& lm)

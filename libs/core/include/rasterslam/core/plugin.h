@@ -129,6 +129,8 @@ struct KeyframeInfo
 	/** The map manager's MappingUpdate::placeQuery for this keyframe, while the engine hands
 	 *  it to the loop detector (null or empty otherwise; not to be kept). */
 	const std::vector<uint8_t>* placeQuery = nullptr;
+	/** MappingUpdate::placeQueryTurns for this keyframe, handed over as placeQuery is. */
+	const std::vector<std::vector<uint8_t>>* placeQueryTurns = nullptr;
 };
 
 /** What the mapping did with a keyframe, for the engine to apply. */
@@ -153,6 +155,10 @@ struct MappingUpdate
 	 *  the new keyframe, made as a local-map image is, for the loop detector's query (image
 	 *  against image); empty when the map manager makes none. */
 	std::vector<uint8_t> placeQuery;
+	/** The descriptors of the same image rasterized turned by k * 90 / N degrees (k = 1..N-1,
+	 *  in that order) when the map manager turns its queries: one of them lies within 45 / N
+	 *  degrees of any place's pixel grid. Empty when it does not. */
+	std::vector<std::vector<uint8_t>> placeQueryTurns;
 };
 
 /** Paper, "Mapping" and "Map Management": the only writer of the map model (keyframes,
