@@ -101,7 +101,7 @@ kiss_row() {  # kiss_row OUTDIR JSON1 JSON2: timings.csv is scan,points,read_ms,
 
 # The malloc the rasterslam program was linked with (RASTERSLAM_USE_JEMALLOC): KISS-ICP gets
 # the same one, so that the ratios compare the two systems and not two allocators.
-ours_jemalloc="$(ldd "$bin/rasterslam" 2>/dev/null | awk '/libjemalloc/ {print $3; exit}')"
+ours_jemalloc="$(ldd "$bin/rasterslam" 2>/dev/null | awk '/libjemalloc/ && !f {print $3; f = 1}' || true)"
 
 run_kiss() {  # run_kiss BINDIR OUTDIR [kiss_runner options]: one thread, pinned like ours
   local velo="$1" out="$2"; shift 2
@@ -282,8 +282,10 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
   fi
   echo
 done
+malloc_used="glibc's, with rasterslam's heap policy for both"
+[ -z "$ours_jemalloc" ] || malloc_used="jemalloc ($ours_jemalloc) for rasterslam and KISS-ICP"
 echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark;" \
-  "malloc: ${ours_jemalloc:+jemalloc ($ours_jemalloc) for rasterslam and KISS-ICP}${ours_jemalloc:-glibc's, with rasterslam's heap policy for both})"
+  "malloc: $malloc_used)"
 
 # --- Reading alone ---------------------------------------------------------------------------
 # The same 101 KITTI scans from .bin files and from the plain rawlog (what kitti2rawlog and
