@@ -99,20 +99,25 @@ kiss_row() {  # kiss_row OUTDIR JSON1 JSON2: timings.csv is scan,points,read_ms,
     "${3:+$(num %.3f "$(json "$3" .rel_trans_pct)")}" "${3:+$(num %.3f "$(json "$3" .ate_rmse_m)")}"
 }
 
-# The malloc the rasterslam program was linked with (RASTERSLAM_USE_JEMALLOC): KISS-ICP gets
-# the same one, so that the ratios compare the two systems and not two allocators.
+# The malloc the rasterslam program was linked with (RASTERSLAM_USE_JEMALLOC, named in the
+# footnote). KISS-ICP runs on glibc's malloc with the heap settings rasterslam used before it
+# took jemalloc: its faster choice (KITTI: 42.5 ms a scan, 76.6 with jemalloc preloaded);
+# KISS_JEMALLOC=1 preloads jemalloc for it instead.
 ours_jemalloc="$(ldd "$bin/rasterslam" 2>/dev/null | awk '/libjemalloc/ && !f {print $3; f = 1}' || true)"
+kiss_jemalloc=""
+if [ "${KISS_JEMALLOC:-0}" = 1 ]; then
+  kiss_jemalloc="$(ldconfig -p 2>/dev/null | awk '/libjemalloc\.so\.2 / && !f {print $NF; f = 1}' || true)"
+  [ -n "$kiss_jemalloc" ] || { echo "benchmark: KISS_JEMALLOC=1 but no libjemalloc.so.2 found" >&2; exit 2; }
+fi
 
 run_kiss() {  # run_kiss BINDIR OUTDIR [kiss_runner options]: one thread, pinned like ours
   local velo="$1" out="$2"; shift 2
   rm -rf "$out"; mkdir -p "$out"
-  if [ -n "$ours_jemalloc" ]; then
-    # rasterslam runs on jemalloc: KISS-ICP too, preloaded.
-    LD_PRELOAD="$ours_jemalloc" \
+  if [ -n "$kiss_jemalloc" ]; then
+    LD_PRELOAD="$kiss_jemalloc" \
       $PIN /usr/bin/time -f %M -o "$out/peak_kb" "$kiss/kiss_runner" --velodyne "$velo" --out "$out" --threads 1 "$@" >/dev/null
   else
-    # glibc's malloc with the heap policy rasterslam then sets for itself (keepScanBlocksInHeap),
-    # given through glibc's environment: scan-sized blocks stay in the heap (KITTI: 55.0 -> 51.5 ms).
+    # Scan-sized blocks stay in glibc's heap (KITTI: 55.0 -> 51.5 ms with glibc's defaults).
     MALLOC_MMAP_THRESHOLD_=33554432 MALLOC_TRIM_THRESHOLD_=1073741824 \
       $PIN /usr/bin/time -f %M -o "$out/peak_kb" "$kiss/kiss_runner" --velodyne "$velo" --out "$out" --threads 1 "$@" >/dev/null
   fi
@@ -282,8 +287,7 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
   fi
   echo
 done
-malloc_used="glibc's, with rasterslam's heap policy for both"
-[ -z "$ours_jemalloc" ] || malloc_used="jemalloc ($ours_jemalloc) for rasterslam and KISS-ICP"
+malloc_used="rasterslam ${ours_jemalloc:+jemalloc}${ours_jemalloc:-glibc's}, KISS-ICP ${kiss_jemalloc:+jemalloc}${kiss_jemalloc:-glibc's with scan-sized blocks kept in the heap}"
 echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark;" \
   "malloc: $malloc_used)"
 
