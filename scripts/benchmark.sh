@@ -287,7 +287,11 @@ for scen in town-loop town-vlp16 town-sweep indoor-handheld town-kitti; do
   fi
   echo
 done
-malloc_used="rasterslam ${ours_jemalloc:+jemalloc}${ours_jemalloc:-glibc's}, KISS-ICP ${kiss_jemalloc:+jemalloc}${kiss_jemalloc:-glibc's with scan-sized blocks kept in the heap}"
+ours_malloc="glibc's"
+[ -z "$ours_jemalloc" ] || ours_malloc="jemalloc"
+kiss_malloc="glibc's with scan-sized blocks kept in the heap"
+[ -z "$kiss_jemalloc" ] || kiss_malloc="jemalloc (KISS_JEMALLOC=1)"
+malloc_used="rasterslam $ours_malloc, KISS-ICP $kiss_malloc"
 echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark;" \
   "malloc: $malloc_used)"
 
