@@ -23,7 +23,8 @@
 #   default configs: share/rasterslam/config/tracking.yaml (the paper's tracking) and
 #   share/rasterslam/config/gicp-baseline.yaml.  Env: BUILD (build dir), DATA, SIM_SCANS
 #   (scans of the HDL-64E town drives, default 300), SIM_LIMIT (scans of the others: all), KISS=0 (leave KISS-ICP out), KISS_DIR
-#   (default ~/.cache/rasterslam-bench/kiss-icp), ANCHORS (default ../shared/anchors).
+#   (default ~/.cache/rasterslam-bench/kiss-icp), ANCHORS (default ../shared/anchors), KISS_JEMALLOC=1
+#   (KISS-ICP with jemalloc preloaded instead of glibc's malloc).
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 BUILD="${BUILD:-$here/build}"
@@ -106,7 +107,7 @@ kiss_row() {  # kiss_row OUTDIR JSON1 JSON2: timings.csv is scan,points,read_ms,
 ours_jemalloc="$(ldd "$bin/rasterslam" 2>/dev/null | awk '/libjemalloc/ && !f {print $3; f = 1}' || true)"
 kiss_jemalloc=""
 if [ "${KISS_JEMALLOC:-0}" = 1 ]; then
-  kiss_jemalloc="$(ldconfig -p 2>/dev/null | awk '/libjemalloc\.so\.2 / && !f {print $NF; f = 1}' || true)"
+  kiss_jemalloc="${ours_jemalloc:-$(/sbin/ldconfig -p 2>/dev/null | awk '/libjemalloc\.so\.2 .*x86-64/ && !f {print $NF; f = 1}' || true)}"
   [ -n "$kiss_jemalloc" ] || { echo "benchmark: KISS_JEMALLOC=1 but no libjemalloc.so.2 found" >&2; exit 2; }
 fi
 
@@ -292,6 +293,7 @@ ours_malloc="glibc's"
 kiss_malloc="glibc's with scan-sized blocks kept in the heap"
 [ -z "$kiss_jemalloc" ] || kiss_malloc="jemalloc (KISS_JEMALLOC=1)"
 malloc_used="rasterslam $ours_malloc, KISS-ICP $kiss_malloc"
+[ -n "$kiss" ] || malloc_used="rasterslam $ours_malloc"
 echo "(one process per run, pinned to one core; 'other' = mapping + loop stages; peak MB = the process's RSS high-water mark;" \
   "malloc: $malloc_used)"
 

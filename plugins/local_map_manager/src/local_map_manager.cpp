@@ -63,11 +63,10 @@ class LocalMapManager : public MapManager
 	std::vector<uint8_t> wordsOfImage(const cv::Mat& image);
 	/** The same from a local map's stored PNG. */
 	std::vector<uint8_t> wordsOf(const LocalMap& lm);
-	/** place_query_keyframes > 0: the descriptors of the image of the last keyframes' clouds
-	 *  (the local map being built around keyframe `kf`) in kf's frame, rasterized as a
-	 *  local-map image is: the loop detector's query, image against image. */
-	/** The loop query's image (place_query_keyframes) and its turned images
-	 *  (place_query_turns) into up.placeQuery and up.placeQueryTurns. */
+	/** place_query_keyframes > 0: into up.placeQuery the descriptors of the image of the last
+	 *  keyframes' clouds (the local map being built around keyframe `kf`) in kf's frame,
+	 *  rasterized as a local-map image is: the loop detector's query, image against image;
+	 *  into up.placeQueryTurns those of the same points rasterized turned (place_query_turns). */
 	void makePlaceQuery(uint64_t kf, const PoseView& poses, MappingUpdate& up);
 
 	// parameters

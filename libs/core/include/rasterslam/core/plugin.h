@@ -156,8 +156,8 @@ struct MappingUpdate
 	 *  against image); empty when the map manager makes none. */
 	std::vector<uint8_t> placeQuery;
 	/** The descriptors of the same image rasterized turned by k * 90 / N degrees (k = 1..N-1,
-	 *  in that order) when the map manager turns its queries: one of them lies within 45 / N
-	 *  degrees of any place's pixel grid. Empty when it does not. */
+	 *  in that order) when the map manager turns its queries: one of the N images, placeQuery
+	 *  included, lies within 45 / N degrees of any place's pixel grid. Empty when it does not. */
 	std::vector<std::vector<uint8_t>> placeQueryTurns;
 };
 
