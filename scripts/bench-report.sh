@@ -8,7 +8,7 @@
 #
 # usage: scripts/bench-report.sh [--quick|--smoke]      (make bench / make bench-quick)
 #   full:    benchmark.sh, benchmark-loops.sh, benchmark-mapping.sh, benchmark-sessions.sh,
-#            rasterslam-bench-places and rasterslam-bench-map-store (about 75 minutes)
+#            rasterslam-bench-places and rasterslam-bench-map-store (about 90 minutes)
 #   --quick: benchmark.sh (150-scan town drives) and benchmark-loops.sh (under 10 minutes)
 #   --smoke: benchmark.sh on 40-scan drives without KITTI or KISS-ICP: checks the report's
 #            making, not the figures (the test suite runs it)
@@ -164,6 +164,10 @@ if [ "$mode" = full ]; then
   [ -d "$D/velodyne" ] && street=(--kitti "$D")
   section "Place recognition among 1,000 local maps and the KITTI street, local-map queries, verified" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
     --vocabulary "$here/share/rasterslam/vocab/elevation-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5 --query-local-maps --verify "${street[@]}"
+  for v in elevation-k10l4 elevation-localmaps-3m-k10l4; do  # the scan and the local-map vocabulary
+    section "Place recognition among 1,000 local maps of lifelong.yaml's 3 m band, $v.vocab" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
+      --vocabulary "$here/share/rasterslam/vocab/$v.vocab" --towns 42 --queries 10 --local-maps --other-towns 5 --query-local-maps --max-height 3 --verify
+  done
   section "Map store: save and load of 1,000 local maps" "$bin/rasterslam-bench-map-store"
 fi
 

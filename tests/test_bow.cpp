@@ -376,8 +376,10 @@ TEST(Bow, QueryViewsKeepEachEntrysBestOnTheFirstViewsScale)
 		    std::max(Vocabulary::score(bows[0], bows[e]), 2 * Vocabulary::score(bows[2], bows[e])),
 		    1e-9);
 		if (i > 0)
+		{
 			EXPECT_TRUE(two[i - 1].score > two[i].score ||
 			            (two[i - 1].score == two[i].score && two[i - 1].entry < e));
+		}
 		for (std::size_t j = 0; j < i; ++j)
 			EXPECT_NE(two[j].entry, e);  // an entry once, at its best
 	}

@@ -32,6 +32,7 @@
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -108,6 +109,20 @@ double gTurnWeight = 0.8;  //!< --turn-weight
 bool gVerify = false;
 int gDirectLevels = 0;  //!< --direct-index
 
+double gMaxHeight = 0;    //!< --max-height: the scans' band above the ground (0: all)
+std::string gSaveImages;  //!< --save-images: folder of the places' images
+std::size_t gImagesSaved = 0;
+
+/** --save-images: a place's image as DIR/NNNNNN.png (to train a vocabulary on). */
+void saveImage(const RasterFrame& f)
+{
+	if (gSaveImages.empty())
+		return;
+	const std::string path = gSaveImages + "/" + mrpt::format("%06zu.png", gImagesSaved++);
+	if (!cv::imwrite(path, f.image.asCvMatRef()))
+		throw std::runtime_error(path + ": cannot write the image");
+}
+
 /** The words of an image whose pixels index `pts`; with --verify also the features that have
  *  a point behind them (the loop detector's keyframes keep the same). */
 Described describe(const RasterFrame& f, const std::vector<PointXYZI>& pts,
@@ -151,10 +166,22 @@ Described describe(const RasterFrame& f, const std::vector<PointXYZI>& pts,
 	return out;
 }
 
+/** How a scan is rasterized: the defaults, or with --max-height lifelong.yaml's band. */
+raster::RasterParams scanRasterParams()
+{
+	raster::RasterParams rp;
+	if (gMaxHeight > 0)  // lifelong.yaml's rasterizer sets max_height_m and grey_max_m alike
+	{
+		rp.maxHeight_m = gMaxHeight;
+		rp.greyMax_m = gMaxHeight;
+	}
+	return rp;
+}
+
 RasterFrame rasterOf(const Scan& scan, uint32_t seed, raster::Plane* planeOut = nullptr)
 {
 	const raster::Plane plane = raster::fitGroundPlane(scan.points, raster::GroundParams(), seed);
-	raster::RasterParams rp;
+	raster::RasterParams rp = scanRasterParams();
 	rp.canonicalYaw = gCanonical;
 	RasterFrame f;
 	raster::rasterizeElevation(scan.points, plane, rp, f);
@@ -170,10 +197,13 @@ Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
                     bool query = false)
 {
 	raster::Plane plane;
-	auto d = describe(rasterOf(scan, seed, &plane), scan.points, vocab, orb, pose);
+	const RasterFrame f = rasterOf(scan, seed, &plane);
+	if (!query)
+		saveImage(f);
+	auto d = describe(f, scan.points, vocab, orb, pose);
 	if (query)
-		d.turns = places::turnedViews(scan.points, plane, raster::RasterParams(), gQueryTurns,
-		                              vocab, orb);  // as the loop detector makes them
+		d.turns = places::turnedViews(scan.points, plane, scanRasterParams(), gQueryTurns, vocab,
+		                              orb);  // as the loop detector makes them
 	return d;
 }
 
@@ -199,6 +229,8 @@ Described localMapPlace(const std::vector<Scan>& scans,
 	mp.canonicalYaw = gCanonical;
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mp, img);
+	if (!query)
+		saveImage(img);
 	auto d = describe(img, pts, vocab, orb, poses[0]);
 	if (query)
 		d.turns = places::turnedViews(pts, raster::Plane(), raster::localMapRasterParams(),
@@ -773,6 +805,7 @@ int run(const Args& a)
 		j["place_kind"] = a.localMaps ? "local_map" : "scan";
 		j["query_turns"] = gQueryTurns;
 		j["turn_weight"] = gTurnWeight;
+		j["max_height_m"] = gMaxHeight;
 		j["query_kind"] = a.queryLocalMaps ? "local_map" : "scan";
 		j["scans_simulated"] = scansSimulated;
 		j["queries"] = withTruth;
@@ -1033,6 +1066,17 @@ int main(int argc, char** argv)
 	    ->needs(verifyFlag)
 	    ->check(CLI::Range(0.01, 180.0).description(""))
 	    ->type_name("DEG");
+	app.add_option("--max-height", gMaxHeight,
+	               "scans rasterized with only the points up to M above the ground, M grey 255 "
+	               "(the rasterizer's max_height_m and grey_max_m, 3 in lifelong.yaml; 0: every "
+	               "height, the default)")
+	    ->check(CLI::Range(0.0, 100.0).description(""))
+	    ->type_name("M");
+	app.add_option("--save-images", gSaveImages,
+	               "also write each place's image to DIR/NNNNNN.png (to train a vocabulary on "
+	               "with rasterslam-vocab train); DIR must exist")
+	    ->check(CLI::ExistingDirectory.description(""))
+	    ->type_name("DIR");
 	if (const int rc = cli::parse(app, argc, argv); rc >= 0)
 		return rc;
 	mrpt::maps::registerAllClasses_mrpt_maps();
