@@ -39,6 +39,14 @@ grey_max=$MAX_HEIGHT
 sed -e "s/^\(    projection: .*\)/    max_height_m: $MAX_HEIGHT\n\1/" \
   -e "s/^    grey_max_m: *[0-9.]*/    grey_max_m: $grey_max/" \
   "$here/share/rasterslam/config/tracking.yaml" >"$work/scans.yaml"
+# The edit must have landed (tracking.yaml's layout may change): once each, with the values.
+for key in "max_height_m: $MAX_HEIGHT" "grey_max_m: $grey_max"; do
+  [ "$(grep -cE "^    $key( |$)" "$work/scans.yaml")" = 1 ] || {
+    echo "train-vocab: could not set '$key' in the rasterizer section of" \
+      "$here/share/rasterslam/config/tracking.yaml (its layout changed?)" >&2
+    exit 1
+  }
+done
 "$bin/kitti2rawlog" --velodyne "$DATA/velodyne" --poses "$DATA/poses_semantickitti.txt" \
   --calib "$DATA/calib.txt" --times "$DATA/times.txt" --external -o "$work/kitti.rawlog" >/dev/null
 "$bin/rasterslam" run --rawlog "$work/kitti.rawlog" --out "$work/run" --config "$work/scans.yaml" \

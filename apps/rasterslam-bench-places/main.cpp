@@ -119,8 +119,11 @@ void saveImage(const RasterFrame& f)
 	if (gSaveImages.empty())
 		return;
 	const std::string path = gSaveImages + "/" + mrpt::format("%06zu.png", gImagesSaved++);
-	if (!cv::imwrite(path, f.image.asCvMatRef()))
-		throw std::runtime_error(path + ": cannot write the image");
+	std::vector<uchar> png;
+	if (!cv::imencode(".png", f.image.asCvMatRef(), png))
+		throw std::runtime_error(path + ": cannot encode the image as PNG");
+	// A temporary name and a rename: an interrupted run leaves no half-written image behind.
+	io::writeFileAtomically(path, std::string(png.begin(), png.end()));
 }
 
 /** The words of an image whose pixels index `pts`; with --verify also the features that have
