@@ -191,3 +191,26 @@ TEST(PlaceRanking, LocalMapVocabularyRanksTheBandImages)
 	EXPECT_GE(mapVocab["recall_at_5"].get<double>(), 0.9);
 	EXPECT_GE(mapVocab["recall_at_1"].get<double>(), scanVocab["recall_at_1"].get<double>() + 0.08);
 }
+
+TEST(PlaceRanking, PolarContextsFusedWithTheWordsRankTheTruePlaceFirst)
+{
+	// The same band images and local-map vocabulary, each place also described by its polar
+	// context about each keyframe (10 rings of 6 m, 60 sectors: each cell's highest point),
+	// the query by its context about its middle keyframe; the two rankings' first 50 fused by
+	// reciprocal rank (K 10), and the fused first 5 verified. README, "Place ranking": among
+	// 1,008 local maps recall@5 0.802 -> 0.962, recall@1 0.552 -> 0.805; measured here (8
+	// towns, 192 places, 80 queries): the words 0.950 / 0.812, the polar contexts alone 0.825
+	// / 0.475, fused 1.000 / 0.925; verified recall 0.925 at precision 1.
+	const auto j = bench("--local-maps --query-local-maps --max-height 3 --polar --verify", 8, 10,
+	                     "elevation-localmaps-3m-k10l4.vocab");
+	ASSERT_EQ(j["queries"].get<int>(), 80);
+	ASSERT_TRUE(j.contains("polar"));
+	const auto& p = j["polar"];
+	ASSERT_EQ(p["rings"].get<int>(), 10);
+	EXPECT_GE(p["recall_at_5"].get<double>(), 0.75);
+	EXPECT_GE(p["fused_recall_at_5"].get<double>(), 0.975);
+	EXPECT_GE(p["fused_recall_at_1"].get<double>(), j["recall_at_1"].get<double>() + 0.08);
+	const auto& v = j["verification"];
+	EXPECT_GE(v["recall"].get<double>(), 0.9);
+	EXPECT_EQ(v["precision"].get<double>(), 1.0);
+}

@@ -20,6 +20,7 @@
 #include <rasterslam/features/rigid_ransac.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/trajectory_io.h>
+#include <rasterslam/places/polar_context.h>
 #include <rasterslam/places/turned_views.h>
 #include <rasterslam/raster/elevation_image.h>
 #include <rasterslam/sim/cloud_world.h>
@@ -87,6 +88,9 @@ struct Described
 	/** --query-turns: the words and normalizer of the same points rasterized turned by
 	 *  k * 90 / N degrees, k = 1..N-1 (queries only). */
 	std::vector<places::TurnedView> turns;
+	/** --polar: the polar context of the image's points (ground removed); a local-map
+	 *  place's about each of its keyframes, a query's about its middle keyframe. */
+	std::vector<places::PolarContext> polar;
 };
 
 struct Place
@@ -107,7 +111,16 @@ int gQueryTurns = 1;       //!< --query-turns
 double gTurnWeight = 0.8;  //!< --turn-weight
 
 bool gVerify = false;
-int gDirectLevels = 0;  //!< --direct-index
+int gDirectLevels = 0;             //!< --direct-index
+bool gPolar = false;               //!< --polar
+int gFuseK = 10;                   //!< --polar: the constant of the reciprocal-rank fusion
+places::PolarParams gPolarParams;  //!< --polar-rings, --polar-sectors, --polar-range
+places::PolarParams polarParams()
+{
+	places::PolarParams pp = gPolarParams;
+	pp.heightOffset_m = raster::RasterParams().sensorHeight_m;
+	return pp;
+}
 
 double gMaxHeight = 0;    //!< --max-height: the scans' band above the ground (0: all)
 std::string gSaveImages;  //!< --save-images: folder of the places' images
@@ -207,6 +220,14 @@ Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
 	if (query)
 		d.turns = places::turnedViews(scan.points, plane, scanRasterParams(), gQueryTurns, vocab,
 		                              orb);  // as the loop detector makes them
+	if (gPolar)
+	{
+		std::vector<PointXYZI> projected;  // the image's points: ground removed, in the band
+		for (const auto idx : f.pixelToPoint)
+			if (idx >= 0)
+				projected.push_back(scan.points[static_cast<std::size_t>(idx)]);
+		d.polar.push_back(places::polarContext(projected, polarParams()));
+	}
 	return d;
 }
 
@@ -238,6 +259,20 @@ Described localMapPlace(const std::vector<Scan>& scans,
 	if (query)
 		d.turns = places::turnedViews(pts, raster::Plane(), raster::localMapRasterParams(),
 		                              gQueryTurns, vocab, orb);
+	if (gPolar)
+	{
+		// A query about its middle keyframe (a local map driven the other way starts at the
+		// far end), a place about each keyframe (a query is then within half a keyframe
+		// step of one of them along the road).
+		for (std::size_t k = query ? poses.size() / 2 : 0; k < poses.size(); k++)
+		{
+			std::vector<PointXYZI> centred;
+			raster::appendMoved(pts, toIsometry(poses[0] - poses[k]).cast<float>(), centred);
+			d.polar.push_back(places::polarContext(centred, polarParams()));
+			if (query)
+				break;
+		}
+	}
 	return d;
 }
 
@@ -296,9 +331,17 @@ int run(const Args& a)
 	bow::Database db;
 	std::vector<Place> places;  // by entry id order of insertion
 	std::vector<bow::Database::EntryId> ids;
-	std::vector<Described> placeImages;  // with --verify, by place (their words dropped)
+	std::vector<Described> placeImages;            // with --verify, by place (their words dropped)
+	places::PolarIndex polarIndex(polarParams());  // --polar: the places' contexts
+	std::vector<std::size_t> polarPlace;           // by context: its place
 	const auto keep = [&](Described&& d)
 	{
+		if (gPolar)
+			for (auto& c : d.polar)
+			{
+				polarIndex.add(std::move(c));
+				polarPlace.push_back(ids.size());
+			}
 		ids.push_back(db.add(d.words));
 		if (a.verify)
 		{
@@ -554,6 +597,12 @@ int run(const Args& a)
 
 	std::size_t at1 = 0, at5 = 0, withTruth = 0, opp = 0, oppAt5 = 0, others = 0;
 	std::vector<double> ms;
+	// --polar: the polar contexts' ranking alone, and fused with the words' ranking.
+	struct
+	{
+		std::size_t at1 = 0, at5 = 0, oppAt5 = 0, fusedAt1 = 0, fusedAt5 = 0, fusedOppAt5 = 0;
+		std::vector<double> ms, fusedMs;  //!< the polar query; polar, words and fusion
+	} polar;
 	// The best place of each query: its normalized score, and whether it is a true place
 	// (false for every query of another town).
 	std::vector<std::pair<double, bool>> best;
@@ -612,6 +661,52 @@ int run(const Args& a)
 			const auto i = placeOf(e);
 			return places[i].town == q.town && places[i].distanceTo(q.position) <= a.truth_m;
 		};
+		// The candidates verified: the words' ranking, or with --polar the fused one.
+		std::vector<bow::Database::EntryId> candidates, polarRanked;
+		if (gPolar)
+		{
+			const auto tq2 = std::chrono::steady_clock::now();
+			const auto tp = tq2;
+			// Each place once, at its best context.
+			std::vector<bow::Database::EntryId> pres;
+			for (const auto& r : polarIndex.query(q.img.polar.front(), 250))
+				if (std::find(pres.begin(), pres.end(), ids[polarPlace[r.id]]) == pres.end() &&
+				    pres.size() < 50)
+					pres.push_back(ids[polarPlace[r.id]]);
+			polar.ms.push_back(
+			    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tp)
+			        .count());  // the polar query, then the whole fused query is added
+			polarRanked = pres;
+			// Reciprocal-rank fusion of the two rankings' first 50: 1 / (K + rank), summed.
+			const auto bres = db.queryViews(views, 50);
+			std::vector<std::pair<double, bow::Database::EntryId>> fused;
+			const auto addRank = [&](bow::Database::EntryId e, std::size_t r)
+			{
+				const double w = 1.0 / (gFuseK + static_cast<double>(r) + 1);
+				for (auto& [f, id] : fused)
+					if (id == e)
+					{
+						f += w;
+						return;
+					}
+				fused.emplace_back(w, e);
+			};
+			for (std::size_t r = 0; r < bres.size(); r++)
+				addRank(bres[r].entry, r);
+			for (std::size_t r = 0; r < pres.size(); r++)
+				addRank(pres[r], r);
+			std::sort(fused.begin(), fused.end(),
+			          [](const auto& x, const auto& y)
+			          { return x.first > y.first || (x.first == y.first && x.second < y.second); });
+			for (const auto& f : fused)
+				candidates.push_back(f.second);
+			polar.fusedMs.push_back(
+			    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq2)
+			        .count());
+		}
+		if (!gPolar)
+			for (const auto& r : res)
+				candidates.push_back(r.entry);
 		bool hasTruth = false;  // a place of the query's town within --truth
 		for (const auto& p : places)
 			hasTruth = hasTruth || (p.town == q.town && p.distanceTo(q.position) <= a.truth_m);
@@ -622,10 +717,10 @@ int run(const Args& a)
 		{
 			std::optional<Accepted> acc;
 			std::vector<std::size_t> counts;
-			for (std::size_t r = 0; r < res.size() && r < static_cast<std::size_t>(a.candidates);
-			     r++)
+			for (std::size_t r = 0;
+			     r < candidates.size() && r < static_cast<std::size_t>(a.candidates); r++)
 			{
-				const auto i = placeOf(res[r].entry);
+				const auto i = placeOf(candidates[r]);
 				const auto v = verifyPair(q.img, placeImages[i], a.minInliers,
 				                          static_cast<uint32_t>(100 * qi + r + 1));
 				verifyMs.push_back(v.ms);
@@ -636,7 +731,7 @@ int run(const Args& a)
 				    places[i].town == q.town && em <= a.poseTruth_m && ed <= a.poseTruth_deg;
 				if (!right)
 					wrongInliersMax = std::max(wrongInliersMax, n);
-				if (!right && !isTrue(res[r].entry))
+				if (!right && !isTrue(candidates[r]))
 				{
 					wrongPlaceInliersMax = std::max(wrongPlaceInliersMax, n);
 					if (v.fit.ok)
@@ -656,7 +751,7 @@ int run(const Args& a)
 					acc->rank = r;
 					acc->matches = v.matches;
 					acc->secondInliers = 0;
-					acc->wrongPlace = !isTrue(res[r].entry);
+					acc->wrongPlace = !isTrue(candidates[r]);
 					acc->hasTruth = hasTruth;
 				}
 			}
@@ -697,6 +792,23 @@ int run(const Args& a)
 				street.at5 += onStreet;
 				break;
 			}
+		if (gPolar)
+		{
+			const auto count = [&](const std::vector<bow::Database::EntryId>& ranked,
+			                       std::size_t& n1, std::size_t& n5, std::size_t& nOpp5)
+			{
+				for (std::size_t r = 0; r < ranked.size() && r < 5; r++)
+					if (isTrue(ranked[r]))
+					{
+						n1 += r == 0;
+						n5++;
+						nOpp5 += q.opposite;
+						break;
+					}
+			};
+			count(polarRanked, polar.at1, polar.at5, polar.oppAt5);
+			count(candidates, polar.fusedAt1, polar.fusedAt5, polar.fusedOppAt5);
+		}
 	}
 	std::sort(ms.begin(), ms.end());
 	const double median = ms.empty() ? 0 : ms[ms.size() / 2], worst = ms.empty() ? 0 : ms.back();
@@ -800,6 +912,15 @@ int run(const Args& a)
 	                     : static_cast<double>(accRight) / static_cast<double>(accepted.size());
 	if (rightInliersMin == std::numeric_limits<std::size_t>::max())
 		rightInliersMin = 0;
+	// --polar: its ranking alone and fused with the words'.
+	std::sort(polar.ms.begin(), polar.ms.end());
+	std::sort(polar.fusedMs.begin(), polar.fusedMs.end());
+	const auto shareOf = [&](std::size_t n)
+	{ return withTruth ? static_cast<double>(n) / static_cast<double>(withTruth) : 0.0; };
+	const double polarMedian = polar.ms.empty() ? 0.0 : polar.ms[polar.ms.size() / 2],
+	             polarWorst = polar.ms.empty() ? 0.0 : polar.ms.back(),
+	             fusedMedian =
+	                 polar.fusedMs.empty() ? 0.0 : polar.fusedMs[polar.fusedMs.size() / 2];
 	if (a.json)
 	{
 		nlohmann::ordered_json j;
@@ -823,6 +944,17 @@ int run(const Args& a)
 		    opp ? static_cast<double>(oppAt5) / static_cast<double>(opp) : 0.0;
 		j["answered_queries"] = best.size();
 		j["recall_at_precision_1"] = recallAtPrecision1;
+		if (gPolar)
+			j["polar"] = {{"rings", gPolarParams.rings},
+			              {"sectors", gPolarParams.sectors},
+			              {"range_m", gPolarParams.maxRange_m},
+			              {"recall_at_1", shareOf(polar.at1)},
+			              {"recall_at_5", shareOf(polar.at5)},
+			              {"query_ms_median", polarMedian},
+			              {"fuse_k", gFuseK},
+			              {"fused_recall_at_1", shareOf(polar.fusedAt1)},
+			              {"fused_recall_at_5", shareOf(polar.fusedAt5)},
+			              {"fused_query_ms_median", fusedMedian}};
 		auto& c = j["pr_curve"] = nlohmann::ordered_json::array();
 		for (const auto& p : curve)
 			c.push_back({{"min_score", p.bound}, {"precision", p.precision}, {"recall", p.recall}});
@@ -893,6 +1025,16 @@ int run(const Args& a)
 	                : ("every " + std::to_string(a.every_m).substr(0, 4) + " m").c_str(),
 	    withTruth, a.offset_m, a.yaw_deg, others, scansSimulated, tBuild, r1, r5, random5,
 	    at5 - oppAt5, withTruth - opp, oppAt5, opp, median, worst);
+	if (gPolar)
+		std::printf(
+		    "polar contexts: recall@1 %.3f, recall@5 %.3f (same way %zu, other way %zu); query "
+		    "%.3f ms median, %.3f ms max\n"
+		    "fused with the words (reciprocal rank, K %d): recall@1 %.3f, recall@5 %.3f (same way "
+		    "%zu, other way %zu); query %.3f ms median (polar, 50 words, fusion); --verify "
+		    "verifies these\n",
+		    shareOf(polar.at1), shareOf(polar.at5), polar.at5 - polar.oppAt5, polar.oppAt5,
+		    polarMedian, polarWorst, gFuseK, shareOf(polar.fusedAt1), shareOf(polar.fusedAt5),
+		    polar.fusedAt5 - polar.fusedOppAt5, polar.fusedOppAt5, fusedMedian);
 	// The curve, thinned to about 12 rows.
 	std::printf(
 	    "best place accepted when its normalized score reaches:\n  min_score  precision  recall\n");
@@ -1027,6 +1169,21 @@ int main(int argc, char** argv)
 	    ->needs(kitti)
 	    ->check(CLI::Range(1, 100000).description(""))
 	    ->type_name("N");
+	app.add_flag("--polar", gPolar,
+	             "also rank the places by polar contexts (each cell of range rings and azimuth "
+	             "sectors holds its highest point; compared at the best sector shift), alone and "
+	             "fused with the words' ranking; printed after the words' recall");
+	app.add_option("--polar-rings", gPolarParams.rings, "--polar: range rings")
+	    ->check(CLI::Range(1, 200));
+	app.add_option("--polar-sectors", gPolarParams.sectors, "--polar: azimuth sectors")
+	    ->check(CLI::Range(1, 720));
+	app.add_option("--polar-range", gPolarParams.maxRange_m, "--polar: range of the last ring (m)")
+	    ->check(CLI::Range(1.0, 200.0));
+	app.add_option("--polar-candidates", gPolarParams.ringCandidates,
+	               "--polar: places compared in full, chosen by the rings' occupancy")
+	    ->check(CLI::Range(1, 100000));
+	app.add_option("--fuse-k", gFuseK, "--polar: the constant K of the fusion's 1 / (K + rank)")
+	    ->check(CLI::Range(0, 1000));
 	app.add_option("--query-turns", gQueryTurns,
 	               "each query also rasterized turned by k * 90 / N degrees (k = 1..N-1), its "
 	               "candidates the best of the N images' (1: the image as driven)")

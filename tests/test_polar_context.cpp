@@ -1,0 +1,129 @@
+// Polar contexts (places::polarContext, comparePolar, PolarIndex): a scene turned about its
+// origin matches itself at the sector shift of the turn, other scenes do not, and the index
+// ranks the turned scene's own place first among many.
+#include <gtest/gtest.h>
+#include <rasterslam/places/polar_context.h>
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+namespace
+{
+using namespace rasterslam;
+
+/** A seeded scene: `n` boxes (walls, poles) of random size, height and place within 50 m,
+ *  their outlines sampled every 0.25 m and every 0.5 m of height, as a LiDAR sees them. The
+ *  sensor is 1.73 m above the ground (the default height offset). */
+std::vector<PointXYZI> scene(uint32_t seed, int n = 40)
+{
+	std::mt19937 rng(seed);
+	std::uniform_real_distribution<float> pos(-45.f, 45.f), size(0.3f, 8.f), height(0.8f, 12.f);
+	std::vector<PointXYZI> pts;
+	for (int b = 0; b < n; b++)
+	{
+		const float cx = pos(rng), cy = pos(rng), sx = size(rng), sy = size(rng), h = height(rng);
+		for (float z = 0.25f; z <= h; z += 0.5f)
+			for (float t = 0; t < 2 * (sx + sy); t += 0.25f)
+			{
+				float x = cx - sx / 2, y = cy - sy / 2;
+				if (t < sx)
+					x += t;
+				else if (t < sx + sy)
+					x += sx, y += t - sx;
+				else if (t < 2 * sx + sy)
+					x += sx - (t - sx - sy), y += sy;
+				else
+					y += sy - (t - 2 * sx - sy);
+				pts.push_back({x, y, z - 1.73f, 0});
+			}
+	}
+	return pts;
+}
+
+std::vector<PointXYZI> turned(const std::vector<PointXYZI>& pts, double yaw)
+{
+	const float c = static_cast<float>(std::cos(yaw)), s = static_cast<float>(std::sin(yaw));
+	std::vector<PointXYZI> out = pts;
+	for (auto& p : out)
+	{
+		const float x = c * p.x - s * p.y, y = s * p.x + c * p.y;
+		p.x = x;
+		p.y = y;
+	}
+	return out;
+}
+
+TEST(PolarContext, CellsHoldTheHighestPointAboveTheGround)
+{
+	places::PolarParams p;
+	p.rings = 20;  // of 3 m; 60 sectors of 6 degrees
+	// Two points in ring 3 (9-12 m) and sector 7 (42-48 degrees), one below the ground.
+	const double a = 45 * M_PI / 180;
+	const std::vector<PointXYZI> pts{
+	    {static_cast<float>(10 * std::cos(a)), static_cast<float>(10 * std::sin(a)), 0.5f, 0},
+	    {static_cast<float>(11 * std::cos(a)), static_cast<float>(11 * std::sin(a)), -0.27f, 0},
+	    {static_cast<float>(5 * std::cos(a)), static_cast<float>(5 * std::sin(a)), -3.0f, 0},
+	    {70.f, 0.f, 1.f, 0}};  // beyond the last ring
+	const auto c = places::polarContext(pts, p);
+	ASSERT_EQ(c.cells.size(), 20u * 60u);
+	EXPECT_FLOAT_EQ(c.at(3, 7), 0.5f + 1.73f);
+	EXPECT_FLOAT_EQ(c.at(1, 7), 0.0f);  // below the ground: left empty
+	int occupied = 0;
+	for (float v : c.cells)
+		occupied += v > 0;
+	EXPECT_EQ(occupied, 1);
+	EXPECT_FLOAT_EQ(c.ringKey[3], 1.0f / 60);
+	EXPECT_EQ(c.sectorKey[7], 1);
+}
+
+TEST(PolarContext, ATurnedSceneMatchesItselfAtTheTurnsShift)
+{
+	const auto pts = scene(7);
+	const auto a = places::polarContext(pts);
+	for (const double deg : {90.0, 30.0, 180.0, 246.0})
+	{
+		const auto b = places::polarContext(turned(pts, deg * M_PI / 180));
+		const auto m = places::comparePolar(a, b);
+		// A point at azimuth t in a is at t + deg in b: a's sector s is b's s + deg / 6.
+		const int expected = static_cast<int>(std::lround(deg / 6)) % 60;
+		const int off = std::abs(m.shift - expected);
+		EXPECT_LE(std::min(off, 60 - off), 1) << deg << " deg: shift " << m.shift;
+		EXPECT_LT(m.distance, 0.1) << deg << " deg";
+	}
+	// Another scene of the same kind is far from it at any shift.
+	const auto other = places::comparePolar(a, places::polarContext(scene(8)), 60);
+	EXPECT_GT(other.distance, 0.3);
+}
+
+TEST(PolarContext, TheIndexRanksATurnedPlaceFirstAmongMany)
+{
+	places::PolarIndex index;
+	for (uint32_t s = 100; s < 160; s++)
+		EXPECT_EQ(index.add(places::polarContext(scene(s))), s - 100);
+	for (const uint32_t s : {103u, 131u, 159u})
+	{
+		const auto res = index.query(places::polarContext(turned(scene(s), 1.1)), 5);
+		ASSERT_EQ(res.size(), 5u);
+		EXPECT_EQ(res[0].id, s - 100);
+		for (std::size_t i = 1; i < res.size(); i++)
+			EXPECT_LE(res[i - 1].match.distance, res[i].match.distance);
+		EXPECT_LT(res[0].match.distance + 0.2, res[1].match.distance);
+	}
+}
+
+TEST(PolarContext, ContextsOfOtherDimensionsAreRefused)
+{
+	places::PolarParams small;
+	small.rings = 5;
+	const auto a = places::polarContext(scene(1), small), b = places::polarContext(scene(1));
+	EXPECT_THROW(places::comparePolar(a, b), std::invalid_argument);
+	places::PolarIndex index;
+	EXPECT_THROW(index.add(a), std::invalid_argument);
+	EXPECT_THROW(index.query(a, 5), std::invalid_argument);
+	small.sectors = 0;
+	EXPECT_THROW(places::polarContext(scene(1), small), std::invalid_argument);
+}
+
+}  // namespace
