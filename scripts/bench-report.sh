@@ -168,6 +168,8 @@ if [ "$mode" = full ]; then
     section "Place recognition among 1,000 local maps of lifelong.yaml's 3 m band, $v.vocab" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
       --vocabulary "$here/share/rasterslam/vocab/$v.vocab" --towns 42 --queries 10 --local-maps --other-towns 5 --query-local-maps --max-height 3 --verify
   done
+  section "Place recognition among 1,000 local maps of the 3 m band, polar contexts fused with the words (verified)" "$bin/rasterslam-bench-places" --scenario "$here/rawlogs/town-loop.yaml" \
+    --vocabulary "$here/share/rasterslam/vocab/elevation-localmaps-3m-k10l4.vocab" --towns 42 --queries 10 --local-maps --other-towns 5 --query-local-maps --max-height 3 --verify --polar
   section "Map store: save and load of 1,000 local maps" "$bin/rasterslam-bench-map-store"
 fi
 
