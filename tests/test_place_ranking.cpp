@@ -198,7 +198,7 @@ TEST(PlaceRanking, PolarContextsFusedWithTheWordsRankTheTruePlaceFirst)
 	// context about each keyframe (10 rings of 6 m, 60 sectors: each cell's highest point),
 	// the query by its context about its middle keyframe; the two rankings' first 50 fused by
 	// reciprocal rank (K 10), and the fused first 5 verified. README, "Place ranking": among
-	// 1,008 local maps recall@5 0.802 -> 0.964, recall@1 0.552 -> 0.805; measured here (8
+	// 1,008 local maps recall@5 0.802 -> 0.962, recall@1 0.552 -> 0.807; measured here (8
 	// towns, 192 places, 80 queries): the words 0.950 / 0.812, the polar contexts alone 0.825
 	// / 0.475, fused 1.000 / 0.925; verified recall 0.925 at precision 1.
 	const auto j = bench("--local-maps --query-local-maps --max-height 3 --polar --verify", 8, 10,

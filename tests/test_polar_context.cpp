@@ -82,7 +82,7 @@ TEST(PolarContext, ATurnedSceneMatchesItselfAtTheTurnsShift)
 {
 	const auto pts = scene(7);
 	const auto a = places::polarContext(pts);
-	for (const double deg : {90.0, 30.0, 180.0, 246.0})
+	for (const double deg : {90.0, 30.0, 180.0, 246.0, 354.0})
 	{
 		const auto b = places::polarContext(turned(pts, deg * M_PI / 180));
 		const auto m = places::comparePolar(a, b);
@@ -97,16 +97,73 @@ TEST(PolarContext, ATurnedSceneMatchesItselfAtTheTurnsShift)
 	EXPECT_GT(other.distance, 0.3);
 }
 
+/** The comparison written the plain way: every shift, each column pair's cosine of the raw
+ *  cells, the mean over the sectors occupied in both. */
+places::PolarMatch bruteForce(const places::PolarContext& a, const places::PolarContext& b)
+{
+	places::PolarMatch best;
+	best.distance = 2;
+	for (int sh = 0; sh < a.sectors; sh++)
+	{
+		double sum = 0;
+		int n = 0;
+		for (int s = 0; s < a.sectors; s++)
+		{
+			double dot = 0, na = 0, nb = 0;
+			for (int r = 0; r < a.rings; r++)
+			{
+				const double x = a.at(r, s), y = b.at(r, (s + sh) % a.sectors);
+				dot += x * y, na += x * x, nb += y * y;
+			}
+			if (na > 0 && nb > 0)
+				sum += 1 - dot / std::sqrt(na * nb), n++;
+		}
+		const double d = n ? sum / n : 1.0;
+		if (d < best.distance)
+			best = {d, sh};
+	}
+	return best;
+}
+
+TEST(PolarContext, TheComparisonAgreesWithThePlainOneAtEveryShift)
+{
+	// Trying every shift, the fast comparison (unit columns' dot products in two pieces
+	// either side of the wrap, occupancy counts) finds what the plain one finds, for turned
+	// copies (also across the wrap) and for other scenes, also partly empty ones.
+	const auto a = places::polarContext(scene(11));
+	for (const double deg : {0.0, 12.0, 100.0, 200.0, 348.0, 359.0})
+	{
+		const auto b = places::polarContext(turned(scene(11), deg * M_PI / 180));
+		const auto fast = places::comparePolar(a, b, 60), plain = bruteForce(a, b);
+		EXPECT_EQ(fast.shift, plain.shift) << deg << " deg";
+		EXPECT_NEAR(fast.distance, plain.distance, 1e-5) << deg << " deg";
+	}
+	for (const uint32_t seed : {12u, 13u})
+	{
+		const auto b = places::polarContext(scene(seed, 6));  // 6 boxes: many empty sectors
+		const auto fast = places::comparePolar(a, b, 60), plain = bruteForce(a, b);
+		EXPECT_EQ(fast.shift, plain.shift) << "scene " << seed;
+		EXPECT_NEAR(fast.distance, plain.distance, 1e-5) << "scene " << seed;
+	}
+	// Nothing in common: the distance is 1.
+	EXPECT_EQ(places::comparePolar(a, places::polarContext({})).distance, 1.0);
+}
+
 TEST(PolarContext, TheIndexRanksATurnedPlaceFirstAmongMany)
 {
-	places::PolarIndex index;
+	places::PolarParams p;
+	p.ringCandidates = 5;  // the ring-key prefilter decides which 5 are compared in full
+	places::PolarIndex index(p);
 	for (uint32_t s = 100; s < 160; s++)
 		EXPECT_EQ(index.add(places::polarContext(scene(s))), s - 100);
 	for (const uint32_t s : {103u, 131u, 159u})
 	{
-		const auto res = index.query(places::polarContext(turned(scene(s), 1.1)), 5);
+		const auto res = index.query(places::polarContext(turned(scene(s), M_PI / 3)), 5);
 		ASSERT_EQ(res.size(), 5u);
 		EXPECT_EQ(res[0].id, s - 100);
+		// The query is the place turned by +60 deg: the place's sector s + shift is the
+		// query's s at shift -10 sectors, 50.
+		EXPECT_LE(std::abs(res[0].match.shift - 50), 1);
 		for (std::size_t i = 1; i < res.size(); i++)
 			EXPECT_LE(res[i - 1].match.distance, res[i].match.distance);
 		EXPECT_LT(res[0].match.distance + 0.2, res[1].match.distance);

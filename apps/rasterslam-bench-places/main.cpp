@@ -28,6 +28,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -36,6 +37,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace cli = rasterslam::cli;
@@ -223,9 +225,7 @@ Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
 	if (gPolar)
 	{
 		std::vector<PointXYZI> projected;  // the image's points: ground removed, in the band
-		for (const auto idx : f.pixelToPoint)
-			if (idx >= 0)
-				projected.push_back(scan.points[static_cast<std::size_t>(idx)]);
+		raster::appendImagePoints(f, scan.points, projected);
 		d.polar.push_back(places::polarContext(projected, polarParams()));
 	}
 	return d;
@@ -237,16 +237,14 @@ Described scanPlace(const Scan& scan, const mrpt::poses::CPose3D& pose,
 Described localMapPlace(const std::vector<Scan>& scans,
                         const std::vector<mrpt::poses::CPose3D>& poses,
                         const bow::Vocabulary& vocab, features::OrbExtractor& orb, uint32_t seed,
-                        bool query = false)
+                        bool query = false, std::size_t centre = 0)
 {
 	std::vector<PointXYZI> pts;
 	for (std::size_t i = 0; i < scans.size(); i++)
 	{
 		const RasterFrame f = rasterOf(scans[i], seed + static_cast<uint32_t>(i));
 		std::vector<PointXYZI> projected;
-		for (const auto idx : f.pixelToPoint)
-			if (idx >= 0)
-				projected.push_back(scans[i].points[static_cast<std::size_t>(idx)]);
+		raster::appendImagePoints(f, scans[i].points, projected);
 		raster::appendMoved(projected, toIsometry(poses[i] - poses[0]).cast<float>(), pts);
 	}
 	raster::RasterParams mp = raster::localMapRasterParams();
@@ -261,10 +259,10 @@ Described localMapPlace(const std::vector<Scan>& scans,
 		                              gQueryTurns, vocab, orb);
 	if (gPolar)
 	{
-		// A query about its middle keyframe (a local map driven the other way starts at the
-		// far end), a place about each keyframe (a query is then within half a keyframe
-		// step of one of them along the road).
-		for (std::size_t k = query ? poses.size() / 2 : 0; k < poses.size(); k++)
+		// A query about the keyframe at its position, `centre` (a local map driven the other
+		// way starts at the far end), a place about each keyframe (a query is then within
+		// half a keyframe step of one of them along the road).
+		for (std::size_t k = query ? std::min(centre, poses.size() - 1) : 0; k < poses.size(); k++)
 		{
 			std::vector<PointXYZI> centred;
 			raster::appendMoved(pts, toIsometry(poses[0] - poses[k]).cast<float>(), centred);
@@ -437,7 +435,8 @@ int run(const Args& a)
 					scans.push_back(s.scanFrom(poses.back(), 1000000 + kk, s.stamp(kk)));
 				}
 				scansSimulated += scans.size();
-				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 7), true);
+				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(k + 7), true,
+				                    static_cast<std::size_t>(a.keyframes / 2));
 			}
 			else
 			{
@@ -571,17 +570,21 @@ int run(const Args& a)
 			{
 				std::vector<Scan> scans;
 				std::vector<mrpt::poses::CPose3D> poses;
+				std::size_t centre = 0;  // the keyframe at the query's position (i = keyframes / 2)
 				for (int i = 0; i < a.keyframes; i++)
 				{
 					const double mm = m + (opposite ? -1 : 1) * (i - a.keyframes / 2) * kfStep;
 					if (mm < 0 || mm > length)
 						continue;
+					if (i == a.keyframes / 2)
+						centre = poses.size();
 					const auto kk = scanAt(mm);
 					scans.push_back(render(kk));
 					poses.push_back(poseOf(route[kk].pose * aside));
 				}
 				scansSimulated += scans.size();
-				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(at + 7), true);
+				img = localMapPlace(scans, poses, *vocab, orb, static_cast<uint32_t>(at + 7), true,
+				                    centre);
 			}
 			else
 			{
@@ -666,7 +669,6 @@ int run(const Args& a)
 		if (gPolar)
 		{
 			const auto tq2 = std::chrono::steady_clock::now();
-			const auto tp = tq2;
 			// Each place once, at its best context.
 			std::vector<bow::Database::EntryId> pres;
 			for (const auto& r : polarIndex.query(q.img.polar.front(), 250))
@@ -674,32 +676,43 @@ int run(const Args& a)
 				    pres.size() < 50)
 					pres.push_back(ids[polarPlace[r.id]]);
 			polar.ms.push_back(
-			    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tp)
-			        .count());  // the polar query, then the whole fused query is added
+			    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq2)
+			        .count());
 			polarRanked = pres;
 			// Reciprocal-rank fusion of the two rankings' first 50: 1 / (K + rank), summed.
+			// Equal sums (a place r-th in one ranking only, against another r-th in the other
+			// only) go to the better single rank, then to the words' rank.
 			const auto bres = db.queryViews(views, 50);
-			std::vector<std::pair<double, bow::Database::EntryId>> fused;
-			const auto addRank = [&](bow::Database::EntryId e, std::size_t r)
+			struct Fused
 			{
-				const double w = 1.0 / (gFuseK + static_cast<double>(r) + 1);
-				for (auto& [f, id] : fused)
-					if (id == e)
-					{
-						f += w;
-						return;
-					}
-				fused.emplace_back(w, e);
+				bow::Database::EntryId entry;
+				double score = 0;
+				std::size_t bestRank = SIZE_MAX, wordsRank = SIZE_MAX;
+			};
+			std::vector<Fused> fused;
+			const auto addRank = [&](bow::Database::EntryId e, std::size_t r, bool words)
+			{
+				auto it = std::find_if(fused.begin(), fused.end(),
+				                       [&](const Fused& f) { return f.entry == e; });
+				if (it == fused.end())
+					it = fused.insert(fused.end(), Fused{e});
+				it->score += 1.0 / (gFuseK + static_cast<double>(r) + 1);
+				it->bestRank = std::min(it->bestRank, r);
+				if (words)
+					it->wordsRank = r;
 			};
 			for (std::size_t r = 0; r < bres.size(); r++)
-				addRank(bres[r].entry, r);
+				addRank(bres[r].entry, r, true);
 			for (std::size_t r = 0; r < pres.size(); r++)
-				addRank(pres[r], r);
+				addRank(pres[r], r, false);
 			std::sort(fused.begin(), fused.end(),
-			          [](const auto& x, const auto& y)
-			          { return x.first > y.first || (x.first == y.first && x.second < y.second); });
+			          [](const Fused& x, const Fused& y)
+			          {
+				          return std::tie(y.score, x.bestRank, x.wordsRank, x.entry) <
+				                 std::tie(x.score, y.bestRank, y.wordsRank, y.entry);
+			          });
 			for (const auto& f : fused)
-				candidates.push_back(f.second);
+				candidates.push_back(f.entry);
 			polar.fusedMs.push_back(
 			    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq2)
 			        .count());
@@ -913,14 +926,11 @@ int run(const Args& a)
 	if (rightInliersMin == std::numeric_limits<std::size_t>::max())
 		rightInliersMin = 0;
 	// --polar: its ranking alone and fused with the words'.
-	std::sort(polar.ms.begin(), polar.ms.end());
-	std::sort(polar.fusedMs.begin(), polar.fusedMs.end());
 	const auto shareOf = [&](std::size_t n)
 	{ return withTruth ? static_cast<double>(n) / static_cast<double>(withTruth) : 0.0; };
-	const double polarMedian = polar.ms.empty() ? 0.0 : polar.ms[polar.ms.size() / 2],
-	             polarWorst = polar.ms.empty() ? 0.0 : polar.ms.back(),
-	             fusedMedian =
-	                 polar.fusedMs.empty() ? 0.0 : polar.fusedMs[polar.fusedMs.size() / 2];
+	const double polarMedian = medianOf(polar.ms), fusedMedian = medianOf(polar.fusedMs),
+	             polarWorst =
+	                 polar.ms.empty() ? 0.0 : *std::max_element(polar.ms.begin(), polar.ms.end());
 	if (a.json)
 	{
 		nlohmann::ordered_json j;
@@ -1180,7 +1190,8 @@ int main(int argc, char** argv)
 	app.add_option("--polar-range", gPolarParams.maxRange_m, "--polar: range of the last ring (m)")
 	    ->check(CLI::Range(1.0, 200.0));
 	app.add_option("--polar-candidates", gPolarParams.ringCandidates,
-	               "--polar: places compared in full, chosen by the rings' occupancy")
+	               "--polar: contexts compared in full (a local-map place has one a keyframe), "
+	               "chosen by the rings' occupancy")
 	    ->check(CLI::Range(1, 100000));
 	app.add_option("--fuse-k", gFuseK, "--polar: the constant K of the fusion's 1 / (K + rank)")
 	    ->check(CLI::Range(0, 1000));

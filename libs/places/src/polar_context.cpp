@@ -15,7 +15,7 @@ PolarContext polarContext(const std::vector<PointXYZI>& pts, const PolarParams& 
 	PolarContext c;
 	c.rings = p.rings;
 	c.sectors = p.sectors;
-	c.cells.assign(static_cast<std::size_t>(p.rings * p.sectors), 0.0f);
+	c.cells.assign(static_cast<std::size_t>(p.rings) * static_cast<std::size_t>(p.sectors), 0.0f);
 	const double ringWidth = p.maxRange_m / p.rings, sectorWidth = 2 * M_PI / p.sectors;
 	for (const auto& pt : pts)
 	{
@@ -23,8 +23,8 @@ PolarContext polarContext(const std::vector<PointXYZI>& pts, const PolarParams& 
 		if (!(r < p.maxRange_m))
 			continue;  // beyond the last ring (or not a number)
 		const double h = pt.z + p.heightOffset_m;
-		if (!(h > 0))
-			continue;
+		if (!(h > 0) || !std::isfinite(h))
+			continue;  // on or below the ground, or not a number
 		const int ring = std::min(p.rings - 1, static_cast<int>(r / ringWidth));
 		double a = std::atan2(pt.y, pt.x);
 		if (a < 0)
@@ -58,6 +58,15 @@ PolarContext polarContext(const std::vector<PointXYZI>& pts, const PolarParams& 
 
 namespace
 {
+/** Dimensions and every array of the size they say (as polarContext() makes them). */
+bool wellFormed(const PolarContext& c)
+{
+	const auto R = static_cast<std::size_t>(std::max(0, c.rings)),
+	           S = static_cast<std::size_t>(std::max(0, c.sectors));
+	return R > 0 && S > 0 && c.cells.size() == R * S && c.columns.size() == R * S &&
+	       c.ringKey.size() == R && c.sectorKey.size() == S;
+}
+
 /** Distance of `a` and `b` with b's sectors shifted by `shift`: the sum of the cosines of
  *  the columns occupied in both is the dot product of the unit columns (an empty column is
  *  all zeros), taken in two contiguous pieces (before and after b's sectors wrap). */
@@ -84,8 +93,7 @@ double distanceAt(const PolarContext& a, const PolarContext& b, int shift)
 
 PolarMatch comparePolar(const PolarContext& a, const PolarContext& b, int shiftCandidates)
 {
-	if (a.rings != b.rings || a.sectors != b.sectors || a.cells.empty() ||
-	    a.columns.size() != a.cells.size() || b.columns.size() != b.cells.size())
+	if (!wellFormed(a) || !wellFormed(b) || a.rings != b.rings || a.sectors != b.sectors)
 		throw std::invalid_argument(
 		    "comparePolar: contexts of different or no dimensions (not made by polarContext?)");
 	const int S = a.sectors;
@@ -124,7 +132,7 @@ PolarMatch comparePolar(const PolarContext& a, const PolarContext& b, int shiftC
 
 std::size_t PolarIndex::add(PolarContext ctx)
 {
-	if (ctx.rings != p_.rings || ctx.sectors != p_.sectors)
+	if (!wellFormed(ctx) || ctx.rings != p_.rings || ctx.sectors != p_.sectors)
 		throw std::invalid_argument(
 		    "PolarIndex::add: a context of other dimensions than the index's");
 	places_.push_back(std::move(ctx));
@@ -134,7 +142,7 @@ std::size_t PolarIndex::add(PolarContext ctx)
 std::vector<PolarIndex::Result> PolarIndex::query(const PolarContext& q,
                                                   std::size_t maxResults) const
 {
-	if (q.rings != p_.rings || q.sectors != p_.sectors)
+	if (!wellFormed(q) || q.rings != p_.rings || q.sectors != p_.sectors)
 		throw std::invalid_argument(
 		    "PolarIndex::query: a context of other dimensions than the index's");
 	std::vector<std::pair<double, std::size_t>> byRing;

@@ -228,4 +228,12 @@ void appendMoved(const std::vector<PointXYZI>& pts, const Eigen::Isometry3f& T,
 	}
 }
 
+void appendImagePoints(const RasterFrame& f, const std::vector<PointXYZI>& pts,
+                       std::vector<PointXYZI>& out)
+{
+	for (const auto idx : f.pixelToPoint)
+		if (idx >= 0 && static_cast<std::size_t>(idx) < pts.size())
+			out.push_back(pts[static_cast<std::size_t>(idx)]);
+}
+
 }  // namespace rasterslam::raster

@@ -331,9 +331,7 @@ MappingUpdate LocalMapManager::addKeyframe(const KeyframeInfo& kf, const Scan& s
 	lastKf_ = k->id;
 	auto& cloud = clouds_[k->id];
 	if (raster)
-		for (const auto idx : raster->pixelToPoint)
-			if (idx >= 0)
-				cloud.push_back(scan.points[static_cast<std::size_t>(idx)]);
+		raster::appendImagePoints(*raster, scan.points, cloud);
 	if (surfaceVoxel_m_ > 0)
 		surfaces_[k->id] = features::voxelDownsample(scan.points, surfaceVoxel_m_, surfaceRange_m_);
 	if (placeQueryKeyframes_ > 0)

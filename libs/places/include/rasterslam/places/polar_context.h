@@ -41,8 +41,13 @@ struct PolarContext
 	/** Sector-major: each sector's ring column scaled to unit length (all 0 when empty), what
 	 *  comparePolar() takes the cosines of. */
 	std::vector<float> columns;
-	float& at(int r, int s) { return cells[static_cast<std::size_t>(r * sectors + s)]; }
-	float at(int r, int s) const { return cells[static_cast<std::size_t>(r * sectors + s)]; }
+	std::size_t index(int r, int s) const
+	{
+		return static_cast<std::size_t>(r) * static_cast<std::size_t>(sectors) +
+		       static_cast<std::size_t>(s);
+	}
+	float& at(int r, int s) { return cells[index(r, s)]; }
+	float at(int r, int s) const { return cells[index(r, s)]; }
 };
 
 /** The polar context of `pts` (x forward, y left, z up, about the frame's origin). */
@@ -77,7 +82,7 @@ class PolarIndex
 		PolarMatch match;
 	};
 	/** The best `maxResults` places by distance (ascending; ties by id) among the
-	 *  `ringCandidates` closest by ring key. */
+	 *  `ringCandidates` closest by ring key; each match is comparePolar(q, place). */
 	std::vector<Result> query(const PolarContext& q, std::size_t maxResults) const;
 
    private:

@@ -74,6 +74,12 @@ inline RasterParams localMapRasterParams(double resolution_m = 0.2, double exten
 void appendMoved(const std::vector<PointXYZI>& pts, const Eigen::Isometry3f& T,
                  std::vector<PointXYZI>& out);
 
+/** Appends to `out` the points of `pts` that `f` shows (the highest of each occupied pixel,
+ *  f.pixelToPoint's), in pixel order: a scan's points with the ground and outliers removed,
+ *  as the local maps gather them. */
+void appendImagePoints(const RasterFrame& f, const std::vector<PointXYZI>& pts,
+                       std::vector<PointXYZI>& out);
+
 struct RasterStats
 {
 	std::size_t input = 0, outliers = 0, ground = 0, projected = 0, pixels = 0;
