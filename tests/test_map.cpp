@@ -51,6 +51,10 @@ LocalMap::Ptr makeLocalMap(uint64_t id, std::vector<uint64_t> kfs, std::mt19937&
 	std::uniform_int_distribution<int> cm(-3000, 3000);
 	for (int i = 0; i < 3 * 40; i++)
 		lm->surfaceCm.push_back(static_cast<int16_t>(cm(rng)));
+	lm->contextRings = 3;
+	lm->contextSectors = 4;
+	for (std::size_t i = 0; i < 12 * lm->keyframes.size(); i++)
+		lm->contextCells.push_back(static_cast<uint8_t>(rng() % 7 == 0 ? 0 : rng()));
 	return lm;
 }
 
@@ -97,9 +101,13 @@ TEST(MapModel, LocalMapRoundTripAndVersion)
 	other = *lm;
 	other.surfaceCm[5] += 1;
 	EXPECT_FALSE(other == *lm);  // ...and at the surface
+	other = *lm;
+	other.contextCells[7] ^= 1;
+	EXPECT_FALSE(other == *lm);  // ...and at the polar contexts
 	EXPECT_EQ(back->surfacePoints(), 40u);
+	EXPECT_EQ(back->contexts(), 3u);  // one about each keyframe
 
-	setVersion(buf, "rasterslam::LocalMap", 1, 7);
+	setVersion(buf, "rasterslam::LocalMap", 2, 7);
 	auto a = mrpt::serialization::archiveFrom(buf);
 	EXPECT_ANY_THROW(a.ReadObject());
 
@@ -116,6 +124,15 @@ TEST(MapModel, LocalMapRoundTripAndVersion)
 	bad3.surfaceCm.pop_back();
 	mrpt::io::CMemoryStream b4;
 	EXPECT_ANY_THROW(roundTrip(bad3, b4));
+	// Polar contexts that are not one a keyframe, or cells of no dimensions.
+	LocalMap bad4 = *lm;
+	bad4.contextCells.resize(24);
+	mrpt::io::CMemoryStream b5;
+	EXPECT_ANY_THROW(roundTrip(bad4, b5));
+	LocalMap bad5 = *lm;
+	bad5.contextSectors = 0;
+	mrpt::io::CMemoryStream b6;
+	EXPECT_ANY_THROW(roundTrip(bad5, b6));
 }
 
 TEST(MapModel, LocalMapOfVersion0LoadsWithoutSurface)
@@ -125,14 +142,19 @@ TEST(MapModel, LocalMapOfVersion0LoadsWithoutSurface)
 	std::mt19937 rng(8);
 	auto lm = makeLocalMap(5, {20, 21}, rng);
 	lm->surfaceCm.clear();
+	lm->contextRings = lm->contextSectors = 0;
+	lm->contextCells.clear();
 	mrpt::io::CMemoryStream buf;
 	mrpt::serialization::archiveFrom(buf) << *lm;
-	setVersion(buf, "rasterslam::LocalMap", 1, 0);
+	setVersion(buf, "rasterslam::LocalMap", 2, 0);
 	const auto* p = static_cast<const uint8_t*>(buf.getRawBufferData());
 	std::vector<uint8_t> v0(p, p + buf.getTotalBytesCount());
-	ASSERT_GE(v0.size(), 5u);
-	ASSERT_EQ(v0[v0.size() - 5], 0u);  // the empty surface's length, 4 bytes of 0
-	v0.erase(v0.end() - 5, v0.end() - 1);
+	// The empty surface's length (4 bytes), the contexts' dimensions (2 + 2) and their cells'
+	// length (4), all 0, then MRPT's end-of-object byte.
+	ASSERT_GE(v0.size(), 13u);
+	for (std::size_t i = v0.size() - 13; i + 1 < v0.size(); i++)
+		ASSERT_EQ(v0[i], 0u);
+	v0.erase(v0.end() - 13, v0.end() - 1);
 	mrpt::io::CMemoryStream in;
 	in.assignMemoryNotOwn(v0.data(), v0.size());
 	const auto back =
@@ -140,6 +162,21 @@ TEST(MapModel, LocalMapOfVersion0LoadsWithoutSurface)
 	ASSERT_TRUE(back);
 	EXPECT_TRUE(*back == *lm);
 	EXPECT_EQ(back->surfacePoints(), 0u);
+
+	// Version 1 (surfaces, no polar contexts): the same without the contexts' 8 bytes.
+	std::vector<uint8_t> v1(p, p + buf.getTotalBytesCount());
+	const std::string raw(v1.begin(), v1.end());
+	const auto at = raw.find("rasterslam::LocalMap");
+	ASSERT_NE(at, std::string::npos);
+	v1[at + std::string("rasterslam::LocalMap").size()] = 1;
+	v1.erase(v1.end() - 9, v1.end() - 1);
+	mrpt::io::CMemoryStream in1;
+	in1.assignMemoryNotOwn(v1.data(), v1.size());
+	const auto back1 =
+	    std::dynamic_pointer_cast<LocalMap>(mrpt::serialization::archiveFrom(in1).ReadObject());
+	ASSERT_TRUE(back1);
+	EXPECT_TRUE(*back1 == *lm);
+	EXPECT_EQ(back1->contexts(), 0u);
 }
 
 TEST(MapModel, DamagedOnlineFlagIsRefusedNotUndefined)

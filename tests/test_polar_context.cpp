@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <rasterslam/places/polar_context.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -168,6 +169,56 @@ TEST(PolarContext, TheIndexRanksATurnedPlaceFirstAmongMany)
 			EXPECT_LE(res[i - 1].match.distance, res[i].match.distance);
 		EXPECT_LT(res[0].match.distance + 0.2, res[1].match.distance);
 	}
+}
+
+TEST(PolarContext, KeptInStepsOf5CmAPlaceComparesAsBeforeAndLeavesTheIndex)
+{
+	const auto a = places::polarContext(scene(21));
+	const auto cells = places::quantizedCells(a, 0.05f);
+	ASSERT_EQ(cells.size(), a.cells.size());
+	const auto back = places::polarContextOfCells(a.rings, a.sectors, cells.data(), 0.05f);
+	for (std::size_t i = 0; i < a.cells.size(); i++)
+	{
+		EXPECT_EQ(back.cells[i] > 0, a.cells[i] > 0) << "cell " << i;  // occupancy kept
+		if (a.cells[i] > 0)
+		{
+			EXPECT_NEAR(back.cells[i], std::clamp(a.cells[i], 0.05f, 12.75f), 0.026);
+		}
+	}
+	EXPECT_EQ(back.ringKey, a.ringKey);
+	EXPECT_EQ(back.sectorKey, a.sectorKey);
+	// Kept, a turned place compares with the original as it did unquantized.
+	const auto q = places::polarContext(turned(scene(21), 0.7));
+	EXPECT_NEAR(places::comparePolar(q, back).distance, places::comparePolar(q, a).distance, 0.01);
+	EXPECT_EQ(places::comparePolar(q, back).shift, places::comparePolar(q, a).shift);
+	// The step's bounds: a low cell stays occupied, a high one saturates.
+	places::PolarContext tiny = a;
+	tiny.cells.assign(tiny.cells.size(), 0.0f);
+	tiny.cells[3] = 0.001f;
+	tiny.cells[4] = 40.0f;
+	const auto t = places::quantizedCells(tiny, 0.05f);
+	EXPECT_EQ(t[3], 1);
+	EXPECT_EQ(t[4], 255);
+	EXPECT_EQ(t[5], 0);
+	EXPECT_THROW(places::quantizedCells(a, 0), std::invalid_argument);
+
+	// A removed place is never an answer and frees its id's slot, not the others' ids.
+	places::PolarIndex index;
+	for (uint32_t s = 20; s < 25; s++)
+		index.add(places::polarContext(scene(s)));
+	ASSERT_EQ(index.query(q, 1).at(0).id, 1u);
+	EXPECT_TRUE(index.remove(1));
+	EXPECT_FALSE(index.remove(1));
+	EXPECT_FALSE(index.remove(99));
+	EXPECT_EQ(index.size(), 4u);
+	EXPECT_FALSE(index.contains(1));
+	EXPECT_EQ(index.context(1), nullptr);
+	const auto res = index.query(q, 10);
+	EXPECT_EQ(res.size(), 4u);
+	for (const auto& r : res)
+		EXPECT_NE(r.id, 1u);
+	EXPECT_EQ(index.add(places::polarContext(scene(21))), 5u);  // ids are never reused
+	EXPECT_EQ(index.query(q, 1).at(0).id, 5u);
 }
 
 TEST(PolarContext, ContextsOfOtherDimensionsAreRefused)

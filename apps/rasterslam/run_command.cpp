@@ -425,6 +425,7 @@ int runCommand(const RunArgs& args)
 	counts["stamps_out_of_order"] = static_cast<uint64_t>(res.stampsOutOfOrder);
 	counts["loop_decisions"] = static_cast<uint64_t>(res.loopDecisionsMade);
 	counts["loop_edges"] = static_cast<uint64_t>(res.loopEdges);
+	counts["loops_by_context"] = static_cast<uint64_t>(res.loopsByContext);
 	counts["rawlog_odometry_edges"] = static_cast<uint64_t>(res.odometryEdges);
 	counts["relocalized"] = static_cast<uint64_t>(res.relocalized);
 	counts["relocalization_failures"] = static_cast<uint64_t>(res.relocalizationFailures);

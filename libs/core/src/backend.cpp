@@ -199,7 +199,9 @@ void Backend::applyMapping(const MappingUpdate& up)
 			++res_.localMaps;
 		}
 		if (loopDetector_)
-			loopDetector_->index(*mapManager_->map().localMaps.at(f.localMap), f.imageDescriptors);
+			// Whole (its polar contexts): online, as it was just made, unless the culling took
+			// it to the store already, whence it is read.
+			loopDetector_->index(*mapManager_->map().data(f.localMap), f.imageDescriptors);
 	}
 	if (loopDetector_)
 		for (const auto& [older, newer] : up.replaced)
@@ -305,6 +307,7 @@ void Backend::process(KeyframeJob& job)
 	std::unique_lock<std::mutex> mapLock(mapMutex_);
 	std::vector<uint8_t> placeQuery;
 	std::vector<std::vector<uint8_t>> placeQueryTurns;
+	PlaceContext placeQueryContext;
 	std::vector<LoopDecision> handOver;
 	if (mapManager_)
 	{
@@ -313,6 +316,7 @@ void Backend::process(KeyframeJob& job)
 		applyMapping(up);
 		placeQuery = std::move(up.placeQuery);
 		placeQueryTurns = std::move(up.placeQueryTurns);
+		placeQueryContext = std::move(up.placeQueryContext);
 		// Local BA may have moved this keyframe: the loop query starts from where it is now.
 		job.kf.pose = poses_.at(job.kf.node);
 		t.mapping = msSince(t0);
@@ -325,12 +329,14 @@ void Backend::process(KeyframeJob& job)
 		job.kf.raster = job.raster.get();
 		job.kf.placeQuery = &placeQuery;
 		job.kf.placeQueryTurns = &placeQueryTurns;
+		job.kf.placeQueryContext = &placeQueryContext;
 		job.kf.inMapFrame = anchored_;
 		auto loops = loopDetector_->detect(job.kf, mapManager_->map(), poses_);
 		job.kf.scan = nullptr;
 		job.kf.raster = nullptr;
 		job.kf.placeQuery = nullptr;
 		job.kf.placeQueryTurns = nullptr;
+		job.kf.placeQueryContext = nullptr;
 		if (anchored_ && !caughtUp_)
 		{
 			// Anchored since the last keyframe: the keyframes made before are in the map's
@@ -415,6 +421,8 @@ void Backend::process(KeyframeJob& job)
 		{
 			handOver = loopDetector_->takeDecisions();
 			res_.loopDecisionsMade += handOver.size();
+			for (const auto& d : handOver)
+				res_.loopsByContext += d.accepted && d.byContext;
 		}
 		t.loop = msSince(t0);
 	}

@@ -982,6 +982,8 @@ void Engine::finishRun(RunState& s)
 		// Moved, not copied: at the end of a long run they are the biggest record kept.
 		auto d = loopDetector_->takeDecisions();
 		res.loopDecisionsMade += d.size();
+		for (const auto& x : d)
+			res.loopsByContext += x.accepted && x.byContext;
 		if (s.opts.onLoopDecisions)
 		{
 			if (!d.empty())

@@ -144,8 +144,9 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		original[here] = b;
 	for (const auto& fin : added.localMaps)
 		if (!inB || inB->count(original.at(fin.localMap)))
-			loopDetector_->index(*mapManager_->map().localMaps.at(fin.localMap),
-			                     fin.imageDescriptors);
+			// Whole (its polar contexts; it went to the store as it came, whence it is read
+			// again: a damaged file stops the merge, naming it, before anything is written).
+			loopDetector_->index(*mapManager_->map().data(fin.localMap), fin.imageDescriptors);
 	rep.sessions = mapManager_->map().sessions;
 	rep.keyframes = mapManager_->map().keyframes.size();
 	return rep;
@@ -220,7 +221,8 @@ PruneReport Engine::pruneMap(const PruneOptions& opts)
 		for (const auto id : replacedByDropped)
 			if (!loopDetector_->indexes(id))
 			{
-				loopDetector_->index(*mapManager_->map().localMaps.at(id),
+				// Whole (its polar contexts), read from the store when offline.
+				loopDetector_->index(*mapManager_->map().data(id),
 				                     mapManager_->imageDescriptors(id));
 				++rep.reindexed;
 			}

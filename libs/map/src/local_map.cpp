@@ -19,14 +19,15 @@ RASTERSLAM_REGISTER_CLASSES(register_rasterslam_map_classes)
 
 uint8_t LocalMap::serializeGetVersion() const
 {
-	return 1;
+	return 2;
 }
 
 void LocalMap::serializeTo(mrpt::serialization::CArchive& out) const
 {
 	out << id << session << keyframes << createdStamp << updatedStamp << online << xyz
 	    << descriptors << observers << imagePng << imageResolution_m << imageExtent_m << baTracks
-	    << baInitialRms_m << baFinalRms_m << surfaceCm;
+	    << baInitialRms_m << baFinalRms_m << surfaceCm << contextRings << contextSectors
+	    << contextCells;
 }
 
 void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
@@ -35,6 +36,7 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	{
 		case 0:
 		case 1:
+		case 2:
 		{
 			// The flag as its byte: a bool read from a damaged file could hold any value (found
 			// by fuzz_map_store: undefined behaviour when used).
@@ -49,6 +51,10 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 			surfaceCm.clear();
 			if (version >= 1)
 				in >> surfaceCm;
+			contextRings = contextSectors = 0;
+			contextCells.clear();
+			if (version >= 2)
+				in >> contextRings >> contextSectors >> contextCells;
 			break;
 		}
 		default:
@@ -60,6 +66,15 @@ void LocalMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	if (surfaceCm.size() % 3 != 0)
 		THROW_EXCEPTION(
 		    "rasterslam::LocalMap: surface coordinates are not a whole number of points");
+	const std::size_t cells = std::size_t{contextRings} * contextSectors;
+	if ((cells == 0) != contextCells.empty() ||
+	    (cells != 0 && contextCells.size() != cells * keyframes.size()))
+		THROW_EXCEPTION(
+		    mrpt::format("rasterslam::LocalMap %llu: %zu polar-context cells for %u x %u cells and "
+		                 "%zu keyframes",
+		                 static_cast<unsigned long long>(id), contextCells.size(),
+		                 static_cast<unsigned>(contextRings), static_cast<unsigned>(contextSectors),
+		                 keyframes.size()));
 	if (keyframes.empty() || keyframes.size() > kMaxKeyframes)
 		THROW_EXCEPTION(mrpt::format("rasterslam::LocalMap %llu: %zu keyframes (expected 1..%zu)",
 		                             static_cast<unsigned long long>(id), keyframes.size(),
@@ -77,7 +92,8 @@ int LocalMap::keyframeIndex(uint64_t kf) const
 std::size_t LocalMap::memoryBytes() const
 {
 	return sizeof(*this) + keyframes.capacity() * 8 + xyz.capacity() * 4 + descriptors.capacity() +
-	       observers.capacity() * 4 + imagePng.capacity() + surfaceCm.capacity() * 2;
+	       observers.capacity() * 4 + imagePng.capacity() + surfaceCm.capacity() * 2 +
+	       contextCells.capacity();
 }
 
 bool LocalMap::operator==(const LocalMap& o) const
@@ -88,7 +104,8 @@ bool LocalMap::operator==(const LocalMap& o) const
 	       imagePng == o.imagePng && imageResolution_m == o.imageResolution_m &&
 	       imageExtent_m == o.imageExtent_m && baTracks == o.baTracks &&
 	       baInitialRms_m == o.baInitialRms_m && baFinalRms_m == o.baFinalRms_m &&
-	       surfaceCm == o.surfaceCm;
+	       surfaceCm == o.surfaceCm && contextRings == o.contextRings &&
+	       contextSectors == o.contextSectors && contextCells == o.contextCells;
 }
 
 uint8_t LocalMapGraph::serializeGetVersion() const

@@ -8,6 +8,35 @@
 
 namespace rasterslam::places
 {
+namespace
+{
+/** The keys and unit columns of a context whose cells are set. */
+void finishContext(PolarContext& c)
+{
+	const int R = c.rings, S = c.sectors;
+	c.ringKey.assign(static_cast<std::size_t>(R), 0.0f);
+	c.sectorKey.assign(static_cast<std::size_t>(S), 0);
+	for (int r = 0; r < R; r++)
+		for (int s = 0; s < S; s++)
+			if (c.at(r, s) > 0)
+			{
+				c.ringKey[static_cast<std::size_t>(r)] += 1.0f / static_cast<float>(S);
+				c.sectorKey[static_cast<std::size_t>(s)]++;
+			}
+	c.columns.assign(c.cells.size(), 0.0f);
+	for (int s = 0; s < S; s++)
+	{
+		double n2 = 0;
+		for (int r = 0; r < R; r++)
+			n2 += static_cast<double>(c.at(r, s)) * c.at(r, s);
+		if (n2 > 0)
+			for (int r = 0; r < R; r++)
+				c.columns[static_cast<std::size_t>(s * R + r)] =
+				    static_cast<float>(c.at(r, s) / std::sqrt(n2));
+	}
+}
+}  // namespace
+
 PolarContext polarContext(const std::vector<PointXYZI>& pts, const PolarParams& p)
 {
 	if (p.rings < 1 || p.sectors < 1 || !(p.maxRange_m > 0))
@@ -33,26 +62,7 @@ PolarContext polarContext(const std::vector<PointXYZI>& pts, const PolarParams& 
 		float& cell = c.at(ring, sector);
 		cell = std::max(cell, static_cast<float>(h));
 	}
-	c.ringKey.assign(static_cast<std::size_t>(p.rings), 0.0f);
-	c.sectorKey.assign(static_cast<std::size_t>(p.sectors), 0);
-	for (int r = 0; r < p.rings; r++)
-		for (int s = 0; s < p.sectors; s++)
-			if (c.at(r, s) > 0)
-			{
-				c.ringKey[static_cast<std::size_t>(r)] += 1.0f / static_cast<float>(p.sectors);
-				c.sectorKey[static_cast<std::size_t>(s)]++;
-			}
-	c.columns.assign(c.cells.size(), 0.0f);
-	for (int s = 0; s < p.sectors; s++)
-	{
-		double n2 = 0;
-		for (int r = 0; r < p.rings; r++)
-			n2 += static_cast<double>(c.at(r, s)) * c.at(r, s);
-		if (n2 > 0)
-			for (int r = 0; r < p.rings; r++)
-				c.columns[static_cast<std::size_t>(s * p.rings + r)] =
-				    static_cast<float>(c.at(r, s) / std::sqrt(n2));
-	}
+	finishContext(c);
 	return c;
 }
 
@@ -130,13 +140,52 @@ PolarMatch comparePolar(const PolarContext& a, const PolarContext& b, int shiftC
 	return best;
 }
 
+std::vector<uint8_t> quantizedCells(const PolarContext& c, float step_m)
+{
+	if (!(step_m > 0))
+		throw std::invalid_argument("quantizedCells: the step must be positive");
+	std::vector<uint8_t> out(c.cells.size(), 0);
+	for (std::size_t i = 0; i < c.cells.size(); i++)
+		if (c.cells[i] > 0)  // occupied stays occupied, however low
+			out[i] = static_cast<uint8_t>(
+			    std::clamp(std::lround(c.cells[i] / step_m), long{1}, long{255}));
+	return out;
+}
+
+PolarContext polarContextOfCells(int rings, int sectors, const uint8_t* cells, float step_m)
+{
+	if (rings < 1 || sectors < 1 || !(step_m > 0))
+		throw std::invalid_argument(
+		    "polarContextOfCells: rings, sectors and step must be positive");
+	PolarContext c;
+	c.rings = rings;
+	c.sectors = sectors;
+	c.cells.resize(static_cast<std::size_t>(rings) * static_cast<std::size_t>(sectors));
+	for (std::size_t i = 0; i < c.cells.size(); i++)
+		c.cells[i] = static_cast<float>(cells[i]) * step_m;
+	finishContext(c);
+	return c;
+}
+
 std::size_t PolarIndex::add(PolarContext ctx)
 {
 	if (!wellFormed(ctx) || ctx.rings != p_.rings || ctx.sectors != p_.sectors)
 		throw std::invalid_argument(
 		    "PolarIndex::add: a context of other dimensions than the index's");
 	places_.push_back(std::move(ctx));
+	live_.push_back(1);
+	++live_count_;
 	return places_.size() - 1;
+}
+
+bool PolarIndex::remove(std::size_t id)
+{
+	if (id >= places_.size() || !live_[id])
+		return false;
+	live_[id] = 0;
+	--live_count_;
+	places_[id] = PolarContext();  // its memory goes now
+	return true;
 }
 
 std::vector<PolarIndex::Result> PolarIndex::query(const PolarContext& q,
@@ -149,6 +198,8 @@ std::vector<PolarIndex::Result> PolarIndex::query(const PolarContext& q,
 	byRing.reserve(places_.size());
 	for (std::size_t i = 0; i < places_.size(); i++)
 	{
+		if (!live_[i])
+			continue;
 		double d = 0;
 		for (std::size_t r = 0; r < q.ringKey.size(); r++)
 		{

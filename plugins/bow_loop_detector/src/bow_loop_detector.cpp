@@ -30,6 +30,18 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	queryOrb_.levels = 3;
 	excludeRecent_s_ = p.getDouble("exclude_recent_s", excludeRecent_s_);
 	minScore_ = p.getDouble("min_score", minScore_);
+	polarFusion_ = p.getBool("polar_fusion", false);
+	polarParams_ = places::PolarParams();
+	polarParams_.ringCandidates = p.getInt("polar_candidates", polarParams_.ringCandidates);
+	polarParams_.shiftCandidates = p.getInt("polar_shift_candidates", polarParams_.shiftCandidates);
+	polarResults_ = p.getInt("polar_results", 50);
+	fuseK_ = p.getDouble("fuse_k", 10);
+	polarMaxDistance_ = p.getDouble("polar_max_distance", 0);
+	p.requireAtLeast(polarParams_.ringCandidates, 1, "polar_candidates");
+	p.requireRange(polarParams_.shiftCandidates, 1, 720, "polar_shift_candidates");
+	p.requireAtLeast(polarResults_, 1, "polar_results");
+	p.requireRange(fuseK_, 0, 1000, "fuse_k");
+	p.requireRange(polarMaxDistance_, 0, 1, "polar_max_distance");
 	maxCandidates_ = p.getInt("max_candidates", maxCandidates_);
 	match_.maxDistance = p.getInt("max_hamming", 64);
 	match_.ratio = static_cast<float>(p.getDouble("ratio", 0.9));
@@ -131,6 +143,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	}
 	db_ = bow::Database();
 	entryMap_.clear();
+	polar_.reset();
+	polarMap_.clear();
 	trainingImages_.clear();
 	prevBow_.reset();
 	retiring_.clear();
@@ -195,11 +209,13 @@ void BowLoopDetector::index(const LocalMap& lm, const std::vector<uint8_t>& imag
 		    trainingImages_.size() >= 2 * trainedOn_)
 		{
 			trainOnline();
+			indexContexts(lm);
 			return;
 		}
 	}
 	if (vocab_)
 		addEntry(lm.id, desc);
+	indexContexts(lm);
 }
 
 namespace
@@ -487,7 +503,22 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		// An image query shares most of its keyframes with the previous one, whose score says
 		// nothing of a place: it is normalized by its own halves.
 		const double imageSelf = db_.size() > 0 && imageQuery ? selfScore(imageDesc) : 0;
-		const auto n = static_cast<std::size_t>(maxResults_);
+		// polar_fusion: the place query's context ranks the places too.
+		const PlaceContext* qc = kf.placeQueryContext;
+		bool fuse = polarFusion_ && polar_ && polar_->size() > 0 && qc && !qc->empty();
+		if (fuse &&
+		    (qc->rings != polar_->params().rings || qc->sectors != polar_->params().sectors ||
+		     qc->cells.size() != std::size_t{qc->rings} * qc->sectors))
+		{
+			MRPT_LOG_THROTTLE_WARN_STREAM(
+			    5.0, "the place query's polar context ("
+			             << qc->rings << " x " << qc->sectors << " cells) is not of the index's "
+			             << polar_->params().rings << " x " << polar_->params().sectors
+			             << ": ranked by its words only");
+			fuse = false;
+		}
+		const auto n =
+		    static_cast<std::size_t>(fuse ? std::max(maxResults_, polarResults_) : maxResults_);
 		const auto results = db_.size() == 0 ? std::vector<bow::Database::Result>{}
 		                     : turned ? queryWithTurns(b, own, turnedViews(*kf.scan, *kf.raster), n)
 		                     : imageTurned
@@ -497,10 +528,16 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		                    : imageQuery    ? imageSelf
 		                    : prevBow_      ? bow::Vocabulary::score(b, *prevBow_)
 		                                    : own;
+		std::vector<Candidate> candidates;
+		if (fuse)
+			candidates = fusedCandidates(results, b, *qc);
+		else
+			for (const auto& r : results)
+				candidates.push_back({entryMap_.at(r.entry), r.score, -1, false});
 		int examined = 0;
-		for (const auto& r : results)
+		for (const auto& r : candidates)
 		{
-			const auto it = map.localMaps.find(entryMap_.at(r.entry));
+			const auto it = map.localMaps.find(r.localMap);
 			if (it == map.localMaps.end())
 				continue;  // not in this map (cannot happen unless removed)
 			// Recent places of this session are no loops: only the keyframes older than
@@ -517,11 +554,18 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			const auto& lm = *data;
 			LoopDecision d;
 			d.queryStamp = kf.stamp;
-			d.score = norm > 1e-6 ? r.score / norm : 0;
+			d.score = norm > 1e-6 ? r.rawScore / norm : 0;
+			d.byContext = r.byContext;
 			const auto fit = verify(q, lm, static_cast<uint32_t>(kf.node * 31 + lm.id), keyframes);
-			d.reason = !fit.ok ? "inliers" : (d.score < minScore_ ? "score" : "ok");
-			consider(d, fit, lm, q, kf, map, poses, d.score >= minScore_, best, bestDecision,
-			         keyframes);
+			// polar_max_distance: a place whose context is this close needs no words' score.
+			const bool closeContext = polarMaxDistance_ > 0 && r.polarDistance >= 0 &&
+			                          r.polarDistance <= polarMaxDistance_;
+			const bool acceptable = d.score >= minScore_ || closeContext;
+			d.reason = !fit.ok ? "inliers" : (acceptable ? "ok" : "score");
+			MRPT_LOG_DEBUG_FMT("candidate %llu: score %.3f, polar distance %.3f, %zu inliers%s",
+			                   static_cast<unsigned long long>(lm.id), d.score, r.polarDistance,
+			                   fit.inliers.size(), fit.ok ? "" : " (refused)");
+			consider(d, fit, lm, q, kf, map, poses, acceptable, best, bestDecision, keyframes);
 			// A loop this strong is taken as it is: the candidates ranked below it are not
 			// verified (most fail, at the cost of a full descriptor match each).
 			if (stopAtInliers_ > 0 && best &&
@@ -567,12 +611,16 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 
 namespace
 {
-/** What savePlaceIndex() writes: version, vocabulary, database, entry -> local map. */
+/** What savePlaceIndex() writes: version, vocabulary, database, entry -> local map; from
+ *  version 1 the polar contexts' dimensions and each context (local map, cells in steps of
+ *  LocalMap::kContextStep_m). */
 struct PlaceIndexContents
 {
 	std::shared_ptr<bow::Vocabulary> vocab = std::make_shared<bow::Vocabulary>();
 	bow::Database db;
 	std::map<bow::Database::EntryId, uint64_t> entries;
+	uint16_t rings = 0, sectors = 0;
+	std::vector<std::pair<uint64_t, std::vector<uint8_t>>> contexts;
 };
 PlaceIndexContents readPlaceIndex(const std::vector<uint8_t>& bytes)
 {
@@ -581,7 +629,7 @@ PlaceIndexContents readPlaceIndex(const std::vector<uint8_t>& bytes)
 	auto a = mrpt::serialization::archiveFrom(buf);
 	uint8_t version = 0;
 	a >> version;
-	if (version != 0)
+	if (version > 1)
 		throw std::runtime_error("unknown place index version " + std::to_string(version));
 	PlaceIndexContents c;
 	a >> *c.vocab >> c.db;
@@ -593,6 +641,26 @@ PlaceIndexContents readPlaceIndex(const std::vector<uint8_t>& bytes)
 		uint64_t lm = 0;
 		a >> e >> lm;
 		c.entries[e] = lm;
+	}
+	if (version >= 1)
+	{
+		a >> c.rings >> c.sectors >> n;
+		const std::size_t cells = std::size_t{c.rings} * c.sectors;
+		if (n > 0 && cells == 0)
+			throw std::runtime_error("the place index has polar contexts of no cells");
+		if (n > bytes.size() / (12 + cells))  // each takes 12 + cells bytes: a damaged count
+			throw std::runtime_error("the place index claims " + std::to_string(n) +
+			                         " polar contexts in " + std::to_string(bytes.size()) +
+			                         " bytes");
+		c.contexts.resize(n);
+		for (auto& [lm, v] : c.contexts)
+		{
+			a >> lm >> v;
+			if (v.size() != cells)
+				throw std::runtime_error("a polar context of the place index has " +
+				                         std::to_string(v.size()) + " cells, not " +
+				                         std::to_string(cells));
+		}
 	}
 	return c;
 }
@@ -628,6 +696,8 @@ bool BowLoopDetector::forget(uint64_t localMap)
 		}
 		else
 			++it;
+	if (polar_ && forgetContexts(localMap))
+		found = true;
 	return trainingImages_.erase(localMap) > 0 || found;
 }
 
@@ -663,10 +733,15 @@ std::vector<uint8_t> BowLoopDetector::savePlaceIndex()
 	}
 	mrpt::io::CMemoryStream buf;
 	auto a = mrpt::serialization::archiveFrom(buf);
-	const uint8_t version = 0;
+	const uint8_t version = 1;
 	a << version << *vocab_ << db_ << static_cast<uint64_t>(entryMap_.size());
 	for (const auto& [e, lm] : entryMap_)
 		a << static_cast<uint32_t>(e) << lm;
+	const auto rings = static_cast<uint16_t>(polar_ ? polar_->params().rings : 0),
+	           sectors = static_cast<uint16_t>(polar_ ? polar_->params().sectors : 0);
+	a << rings << sectors << static_cast<uint64_t>(polarMap_.size());
+	for (const auto& [id, lm] : polarMap_)
+		a << lm << places::quantizedCells(*polar_->context(id), LocalMap::kContextStep_m);
 	const auto* p = static_cast<const uint8_t*>(buf.getRawBufferData());
 	return std::vector<uint8_t>(p, p + buf.getTotalBytesCount());
 }
@@ -692,9 +767,24 @@ void BowLoopDetector::loadPlaceIndex(const Map& map)
 		throw std::runtime_error("the place index has " + std::to_string(c.db.size()) +
 		                         " entries and " + std::to_string(c.entries.size()) +
 		                         " of them name a local map");
+	for (const auto& [lm, cells] : c.contexts)
+		if (!map.localMaps.count(lm))
+			throw std::runtime_error("the place index has a polar context of a missing local map");
 	vocab_ = c.vocab;
 	db_ = std::move(c.db);
 	entryMap_ = std::move(c.entries);
+	polar_.reset();
+	polarMap_.clear();
+	if (!c.contexts.empty())
+	{
+		auto p = polarParams_;
+		p.rings = c.rings;
+		p.sectors = c.sectors;
+		polar_ = std::make_unique<places::PolarIndex>(p);
+		for (const auto& [lm, cells] : c.contexts)
+			polarMap_[polar_->add(places::polarContextOfCells(c.rings, c.sectors, cells.data(),
+			                                                  LocalMap::kContextStep_m))] = lm;
+	}
 	trainingImages_.clear();
 	prevBow_.reset();
 	online_ = false;  // the map's vocabulary stays

@@ -13,6 +13,7 @@
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/features/planar_search.h>
 #include <rasterslam/features/rigid_ransac.h>
+#include <rasterslam/places/polar_context.h>
 #include <rasterslam/places/turned_views.h>
 #include <rasterslam/raster/elevation_image.h>
 
@@ -219,12 +220,44 @@ class BowLoopDetector : public LoopDetector
 	 *  candidate, not the run. */
 	LocalMap::ConstPtr candidate(const Map& map, uint64_t localMap);
 
+	/** The polar contexts of the indexed local maps (LocalMap::contextCells); with
+	 *  polar_fusion, ranked beside the words when a keyframe's place query has one. Made
+	 *  with the first
+	 *  context's dimensions; contexts of others are not indexed (a warning). */
+	bool polarFusion_ = false;
+	places::PolarParams polarParams_;  //!< its ringCandidates and shiftCandidates
+	int polarResults_ = 50;            //!< first places of each ranking fused
+	double fuseK_ = 10;                //!< fusion: 1 / (fuse_k + rank) summed
+	/** A fused candidate this close to the query's context (polar distance) is acceptable
+	 *  once verified whatever its words' score; 0: the score decides alone. */
+	double polarMaxDistance_ = 0;
+	std::unique_ptr<places::PolarIndex> polar_;
+	std::map<std::size_t, uint64_t> polarMap_;  //!< context -> local map
+	/** Adds the contexts of `lm` (none when it has none or the index holds others'). */
+	void indexContexts(const LocalMap& lm);
+	bool forgetContexts(uint64_t localMap);
+	/** A candidate of the place search: its words' score (raw, 0 when not indexed by its
+	 *  words) and its polar distance to the query (-1: not ranked by its context). */
+	struct Candidate
+	{
+		uint64_t localMap = 0;
+		double rawScore = 0;
+		double polarDistance = -1;
+		bool byContext = false;  //!< not among the words' first max_results
+	};
+	/** The words' ranking `words` (of the query's words `b`) and the polar contexts' ranking
+	 *  of query context `q` fused by reciprocal rank: each ranking's first polar_results
+	 *  local maps score 1 / (fuse_k + rank) in it; equal sums go to the better single rank,
+	 *  then the words' rank. */
+	std::vector<Candidate> fusedCandidates(const std::vector<bow::Database::Result>& words,
+	                                       const bow::BowVector& b, const PlaceContext& q) const;
+
 	// parameters
 	std::string vocabularyFile_;
 	int onlineMinMaps_ = 8, onlineBranching_ = 8, onlineLevels_ = 3;
 	features::OrbParams queryOrb_;
 	double excludeRecent_s_ = 30, minScore_ = 0.3;
-	int maxCandidates_ = 5, maxResults_ = 20;
+	int maxCandidates_ = 5, maxResults_ = 20;  //!< max_results is not a parameter
 	int stopAtInliers_ = 0;  //!< an accepted candidate with this many inliers ends the search
 	features::MatchParams match_;
 	features::RansacParams ransac_;

@@ -9,6 +9,7 @@
 #include <rasterslam/features/orb_extractor.h>
 #include <rasterslam/map/registration.h>
 #include <rasterslam/mapping/local_ba.h>
+#include <rasterslam/places/polar_context.h>
 #include <rasterslam/raster/elevation_image.h>
 #include <signal.h>
 #include <unistd.h>
@@ -68,11 +69,18 @@ class LocalMapManager : public MapManager
 	 *  rasterized as a local-map image is: the loop detector's query, image against image;
 	 *  into up.placeQueryTurns those of the same points rasterized turned (place_query_turns). */
 	void makePlaceQuery(uint64_t kf, const PoseView& poses, MappingUpdate& up);
+	/** polar_contexts: the polar context of `pts` (non-ground points about a keyframe, in
+	 *  its frame) as a map keeps it (LocalMap::contextCells). */
+	std::vector<uint8_t> contextCells(const std::vector<PointXYZI>& pts) const;
 
 	// parameters
 	int keyframesPerMap_ = 5;
 	int placeQueryKeyframes_ = 0;  //!< keyframes in the loop query's image (0: no image)
 	int placeQueryTurns_ = 1;      //!< the query's image also turned by k * 90 / this (k >= 1)
+	/** Polar contexts of each local map about its keyframes, and of the place query about its
+	 *  keyframe, for the loop detector's second ranking. */
+	bool polarContexts_ = false;
+	places::PolarParams polar_;
 	double maxExtent_m_ = 40;
 	bool overlap_ = true;
 	bool localBa_ = false;
@@ -130,6 +138,12 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	keyframesPerMap_ = p.getInt("keyframes_per_map", keyframesPerMap_);
 	placeQueryKeyframes_ = p.getInt("place_query_keyframes", placeQueryKeyframes_);
 	placeQueryTurns_ = p.getInt("place_query_turns", placeQueryTurns_);
+	polarContexts_ = p.getBool("polar_contexts", false);
+	polar_ = places::PolarParams();
+	polar_.rings = p.getInt("polar_rings", polar_.rings);
+	polar_.sectors = p.getInt("polar_sectors", polar_.sectors);
+	polar_.maxRange_m = p.getDouble("polar_range_m", polar_.maxRange_m);
+	polar_.heightOffset_m = p.getDouble("polar_height_offset_m", polar_.heightOffset_m);
 	maxExtent_m_ = p.getDouble("max_extent_m", maxExtent_m_);
 	overlap_ = p.getBool("overlap", overlap_);
 	localBa_ = p.getBool("local_ba", localBa_);
@@ -166,10 +180,17 @@ void LocalMapManager::initializeImpl(ParamReader& p)
 	p.requireRange(placeQueryKeyframes_, 0, static_cast<double>(LocalMap::kMaxKeyframes),
 	               "place_query_keyframes");
 	p.requireRange(placeQueryTurns_, 1, 16, "place_query_turns");
+	if (polarContexts_ && placeQueryKeyframes_ == 0)
+		p.reject("polar_contexts",
+		         "describes the place query of place_query_keyframes, which is 0");
 	if (placeQueryTurns_ > 1 && placeQueryKeyframes_ == 0)
 		p.reject("place_query_turns", "turns the image of place_query_keyframes, which is 0");
 	if (placeQueryTurns_ > 1 && mapRaster_.canonicalYaw)
 		p.reject("place_query_turns", "and canonical_yaw both turn the query's image: use one");
+	p.requireRange(polar_.rings, 1, 255, "polar_rings");
+	p.requireRange(polar_.sectors, 1, 720, "polar_sectors");
+	p.requireRange(polar_.maxRange_m, 1.0, 500.0, "polar_range_m");
+	p.requireRange(polar_.heightOffset_m, -10.0, 10.0, "polar_height_offset_m");
 	p.requirePositive(maxExtent_m_, "max_extent_m");
 	p.requireAtLeast(ba_.maxIterations, 1, "ba_max_iterations");
 	p.requirePositive(ba_.sigmaXY_m, "ba_sigma_xy_m");
@@ -503,6 +524,20 @@ void LocalMapManager::finishOpen(const PoseView& poses, MappingUpdate& up, bool 
 	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
 	if (surfaceVoxel_m_ > 0)
 		lm->surfaceCm = surfaceOf(ids, T);
+	if (polarContexts_)
+	{
+		// About each keyframe: a later pass is near one of them wherever along the map it is.
+		lm->contextRings = static_cast<uint16_t>(polar_.rings);
+		lm->contextSectors = static_cast<uint16_t>(polar_.sectors);
+		std::vector<PointXYZI> about;
+		for (std::size_t i = 0; i < ids.size(); i++)
+		{
+			about.clear();
+			raster::appendMoved(pts, T[i].inverse().cast<float>(), about);
+			const auto cells = contextCells(about);
+			lm->contextCells.insert(lm->contextCells.end(), cells.begin(), cells.end());
+		}
+	}
 	MappingUpdate::Finished fin;
 	fin.localMap = lm->id;
 	fin.imageDescriptors = wordsOfImage(img.image.asCvMatRef());
@@ -713,6 +748,12 @@ void LocalMapManager::makePlaceQuery(uint64_t kf, const PoseView& poses, Mapping
 	RasterFrame img;
 	raster::rasterizeElevation(pts, raster::Plane(), mapRaster_, img);
 	up.placeQuery = wordsOfImage(img.image.asCvMatRef());
+	if (polarContexts_)
+	{
+		up.placeQueryContext.rings = static_cast<uint16_t>(polar_.rings);
+		up.placeQueryContext.sectors = static_cast<uint16_t>(polar_.sectors);
+		up.placeQueryContext.cells = contextCells(pts);
+	}
 	// Rasterized turned, not the image warped: no resampling of the heights.
 	for (int k = 1; k < placeQueryTurns_; k++)
 	{
@@ -721,6 +762,11 @@ void LocalMapManager::makePlaceQuery(uint64_t kf, const PoseView& poses, Mapping
 		                                 img);
 		up.placeQueryTurns.push_back(wordsOfImage(img.image.asCvMatRef()));
 	}
+}
+
+std::vector<uint8_t> LocalMapManager::contextCells(const std::vector<PointXYZI>& pts) const
+{
+	return places::quantizedCells(places::polarContext(pts, polar_), LocalMap::kContextStep_m);
 }
 
 std::vector<uint8_t> LocalMapManager::wordsOf(const LocalMap& lm)

@@ -88,6 +88,8 @@ struct RunResult
 	 *  RunOptions::onLoopDecisions took them); loopDecisionsMade counts them either way. */
 	std::vector<LoopDecision> loopDecisions;
 	std::size_t loopDecisionsMade = 0;
+	/** Accepted loops whose candidate the polar contexts alone ranked (LoopDecision::byContext). */
+	std::size_t loopsByContext = 0;
 	/** Empty if the input ended normally; else where and why it stopped early. */
 	std::string stopReason;
 	/** The value RunOptions::stop held when it stopped the run; 0 when it did not. */

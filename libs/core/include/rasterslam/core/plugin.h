@@ -105,6 +105,16 @@ class Odometry : public Plugin
 	virtual OdometryResult process(const Scan& scan, const RasterFrame* raster) = 0;
 };
 
+/** A place's polar context as a LocalMap keeps one (LocalMap::contextCells): rings x sectors
+ *  cells, ring-major, each the height above the ground of the highest point in it in steps
+ *  of LocalMap::kContextStep_m (0: empty). */
+struct PlaceContext
+{
+	uint16_t rings = 0, sectors = 0;
+	std::vector<uint8_t> cells;
+	bool empty() const { return cells.empty(); }
+};
+
 /** A keyframe as the engine hands it to mapping and loop closing. */
 struct KeyframeInfo
 {
@@ -131,6 +141,8 @@ struct KeyframeInfo
 	const std::vector<uint8_t>* placeQuery = nullptr;
 	/** MappingUpdate::placeQueryTurns for this keyframe, handed over as placeQuery is. */
 	const std::vector<std::vector<uint8_t>>* placeQueryTurns = nullptr;
+	/** MappingUpdate::placeQueryContext for this keyframe, handed over as placeQuery is. */
+	const PlaceContext* placeQueryContext = nullptr;
 };
 
 /** What the mapping did with a keyframe, for the engine to apply. */
@@ -159,6 +171,9 @@ struct MappingUpdate
 	 *  in that order) when the map manager turns its queries: one of the N images, placeQuery
 	 *  included, lies within 45 / N degrees of any place's pixel grid. Empty when it does not. */
 	std::vector<std::vector<uint8_t>> placeQueryTurns;
+	/** The polar context of the same points about the new keyframe, when the map manager
+	 *  makes contexts (as it makes each local map's, LocalMap::contextCells); empty when not. */
+	PlaceContext placeQueryContext;
 };
 
 /** Paper, "Mapping" and "Map Management": the only writer of the map model (keyframes,
@@ -231,9 +246,12 @@ struct LoopDecision
 	uint64_t candidateMap = 0;   //!< the candidate local map
 	double score = 0;            //!< normalized BOW score
 	std::size_t inliers = 0;
-	bool verified = false;                   //!< the geometric check passed
-	bool accepted = false;                   //!< it became a loop edge
-	std::string reason;                      //!< one word: ok, score, inliers, ...
+	bool verified = false;  //!< the geometric check passed
+	bool accepted = false;  //!< it became a loop edge
+	std::string reason;     //!< one word: ok, score, inliers, ...
+	/** The candidate came from the places' polar contexts (not among what the words alone
+	 *  would rank): what ranking by them adds. */
+	bool byContext = false;
 	mrpt::poses::CPose3D T_candidate_query;  //!< query in the matched keyframe's frame
 };
 

@@ -52,6 +52,21 @@ class LocalMap : public mrpt::serialization::CSerializable
 	std::vector<int16_t> surfaceCm;
 	std::size_t surfacePoints() const { return surfaceCm.size() / 3; }
 
+	/** The place's polar contexts (places::PolarContext), one about each keyframe in the
+	 *  order of `keyframes`: its non-ground points binned by range ring and azimuth sector,
+	 *  each cell the height above the ground of its highest point in steps of
+	 *  kContextStep_m (0: empty), ring-major. What the loop detector ranks places by beside
+	 *  the image's words. Empty when the map manager makes none or the map was written before
+	 *  version 2. */
+	static constexpr float kContextStep_m = 0.05f;
+	uint16_t contextRings = 0, contextSectors = 0;
+	std::vector<uint8_t> contextCells;
+	std::size_t contexts() const
+	{
+		const std::size_t n = std::size_t{contextRings} * contextSectors;
+		return n == 0 ? 0 : contextCells.size() / n;
+	}
+
 	/** Local BA figures, for run reports. */
 	uint32_t baTracks = 0;
 	float baInitialRms_m = 0, baFinalRms_m = 0;

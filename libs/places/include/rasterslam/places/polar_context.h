@@ -53,6 +53,13 @@ struct PolarContext
 /** The polar context of `pts` (x forward, y left, z up, about the frame's origin). */
 PolarContext polarContext(const std::vector<PointXYZI>& pts, const PolarParams& p = {});
 
+/** The cells of `c` in steps of `step_m` (rounded, at most 255 steps; an occupied cell is
+ *  at least 1): how a map keeps a context (LocalMap::contextCells). */
+std::vector<uint8_t> quantizedCells(const PolarContext& c, float step_m);
+
+/** The context of cells kept as quantizedCells() makes them (rings x sectors of them). */
+PolarContext polarContextOfCells(int rings, int sectors, const uint8_t* cells, float step_m);
+
 struct PolarMatch
 {
 	/** Mean over the sectors occupied in both of 1 - cosine of their ring columns, at the
@@ -72,9 +79,19 @@ class PolarIndex
 {
    public:
 	explicit PolarIndex(const PolarParams& p = {}) : p_(p) {}
-	/** Adds a place; returns its id (0, 1, ... in the order of insertion). */
+	/** Adds a place; returns its id (0, 1, ... in the order of insertion; never reused). */
 	std::size_t add(PolarContext ctx);
-	std::size_t size() const { return places_.size(); }
+	/** Removes a place (its memory is freed); false when there is none of that id. */
+	bool remove(std::size_t id);
+	bool contains(std::size_t id) const { return id < live_.size() && live_[id]; }
+	/** A place's context; null when there is none of that id. */
+	const PolarContext* context(std::size_t id) const
+	{
+		return contains(id) ? &places_[id] : nullptr;
+	}
+	/** Places held (removed ones not counted). */
+	std::size_t size() const { return live_count_; }
+	const PolarParams& params() const { return p_; }
 
 	struct Result
 	{
@@ -88,6 +105,8 @@ class PolarIndex
    private:
 	PolarParams p_;
 	std::vector<PolarContext> places_;
+	std::vector<char> live_;  //!< 0: removed
+	std::size_t live_count_ = 0;
 };
 
 }  // namespace rasterslam::places

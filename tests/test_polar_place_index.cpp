@@ -1,0 +1,164 @@
+// The loop detector's place index with the local maps' polar contexts (LocalMap::contextCells):
+// what a saved map keeps of them, what leaves with a forgotten local map, and indexes of
+// maps written before them.
+#include <gtest/gtest.h>
+#include <rasterslam/core/plugin_loader.h>
+#include <rasterslam/map/map.h>
+#include <rasterslam/places/polar_context.h>
+
+#include <random>
+
+#include "test_support.h"
+
+using namespace rasterslam;
+using mrpt::containers::yaml;
+
+namespace
+{
+constexpr const char* kClass = "rasterslam::BowLoopDetector";
+
+std::shared_ptr<LoopDetector> makeDetector()
+{
+	PluginLoader::instance().load();
+	auto d = PluginLoader::instance().create<LoopDetector>(kClass);
+	d->initialize(yaml::FromText(
+	    "vocabulary_file: " +
+	    test::sourcePath("share/rasterslam/vocab/elevation-localmaps-3m-k10l4.vocab") +
+	    "\npolar_fusion: true\n"));
+	return d;
+}
+
+/** Points of boxes scattered about the origin (seeded): a place with a context. */
+std::vector<PointXYZI> scene(uint32_t seed)
+{
+	std::mt19937 rng(seed);
+	std::uniform_real_distribution<float> xy(-50, 50), h(0.5f, 6.f);
+	std::vector<PointXYZI> pts;
+	for (int b = 0; b < 30; b++)
+	{
+		const float cx = xy(rng), cy = xy(rng), top = h(rng);
+		for (float z = -1.5f; z < top - 1.73f; z += 0.3f)
+			pts.push_back({cx, cy, z, 0});
+	}
+	return pts;
+}
+
+/** A local map of `keyframes` keyframes with a context about each (when `contexts`). */
+LocalMap::Ptr localMap(uint64_t id, std::size_t keyframes, bool contexts)
+{
+	auto lm = std::make_shared<LocalMap>();
+	lm->id = id;
+	for (std::size_t k = 0; k < keyframes; k++)
+		lm->keyframes.push_back(100 * id + k);
+	if (contexts)
+	{
+		lm->contextRings = 10;
+		lm->contextSectors = 60;
+		for (std::size_t k = 0; k < keyframes; k++)
+		{
+			const auto c = places::quantizedCells(
+			    places::polarContext(scene(static_cast<uint32_t>(10 * id + k))),
+			    LocalMap::kContextStep_m);
+			lm->contextCells.insert(lm->contextCells.end(), c.begin(), c.end());
+		}
+	}
+	return lm;
+}
+
+/** ORB-like descriptors (seeded), 32 bytes each: an image's words. */
+std::vector<uint8_t> descriptors(uint32_t seed)
+{
+	std::mt19937 rng(seed);
+	std::vector<uint8_t> d(32 * 200);
+	for (auto& b : d)
+		b = static_cast<uint8_t>(rng());
+	return d;
+}
+
+Map mapOf(const std::vector<LocalMap::Ptr>& lms, std::vector<uint8_t> index)
+{
+	Map m;
+	for (const auto& lm : lms)
+		m.localMaps[lm->id] = lm;
+	m.placeIndexClass = kClass;
+	m.placeIndex = std::move(index);
+	return m;
+}
+}  // namespace
+
+TEST(PolarPlaceIndex, ContextsAreSavedWithTheIndexAndLeaveWithTheirLocalMap)
+{
+	const std::vector<LocalMap::Ptr> lms = {localMap(1, 5, true), localMap(2, 3, true),
+	                                        localMap(3, 5, false)};
+	auto a = makeDetector();
+	for (const auto& lm : lms)
+		a->index(*lm, descriptors(static_cast<uint32_t>(lm->id)));
+	const auto saved = a->savePlaceIndex();
+
+	// Read back and written again, the index is the same bytes: every context kept as it was.
+	auto b = makeDetector();
+	b->loadPlaceIndex(mapOf(lms, saved));
+	EXPECT_EQ(b->savePlaceIndex(), saved);
+
+	// Without its contexts the index is smaller by 8 of them (5 + 3; local map 3 has none).
+	auto plain = makeDetector();
+	for (const auto& lm : {localMap(1, 5, false), localMap(2, 3, false), localMap(3, 5, false)})
+		plain->index(*lm, descriptors(static_cast<uint32_t>(lm->id)));
+	const std::size_t perContext = 8 + 4 + 600;  // local map id, length, 10 x 60 cells
+	EXPECT_EQ(saved.size(), plain->savePlaceIndex().size() + 8 * perContext);
+
+	// A forgotten local map's contexts go with its words: the index no longer names it, so a
+	// map without it loads (a context left behind would be refused as a missing local map's).
+	EXPECT_TRUE(b->forget(1));
+	const auto after = b->savePlaceIndex();
+	EXPECT_TRUE(plain->forget(1));
+	EXPECT_EQ(after.size(), plain->savePlaceIndex().size() + 3 * perContext);  // map 2's 3 left
+	auto c = makeDetector();
+	EXPECT_NO_THROW(c->loadPlaceIndex(mapOf({lms[1], lms[2]}, after)));
+	EXPECT_EQ(c->savePlaceIndex(), after);
+	EXPECT_FALSE(c->forget(1));  // nothing of it left
+}
+
+TEST(PolarPlaceIndex, AnIndexWrittenBeforeTheContextsLoadsAndDamageIsRefused)
+{
+	const std::vector<LocalMap::Ptr> lms = {localMap(1, 2, false), localMap(2, 2, false)};
+	auto a = makeDetector();
+	for (const auto& lm : lms)
+		a->index(*lm, descriptors(static_cast<uint32_t>(lm->id)));
+	const auto v1 = a->savePlaceIndex();
+	// Version 0: the same without the contexts' dimensions (2 + 2 bytes) and count (8).
+	ASSERT_GT(v1.size(), 13u);
+	ASSERT_EQ(v1[0], 1);
+	for (std::size_t i = v1.size() - 12; i < v1.size(); i++)
+		ASSERT_EQ(v1[i], 0) << "byte " << i;
+	auto v0 = v1;
+	v0[0] = 0;
+	v0.resize(v0.size() - 12);
+	auto b = makeDetector();
+	ASSERT_NO_THROW(b->loadPlaceIndex(mapOf(lms, v0)));
+	EXPECT_EQ(b->savePlaceIndex(), v1);  // written again in the new version, nothing lost
+
+	// Damaged: a version from the future, a count of contexts the bytes cannot hold, cells of
+	// the wrong number.
+	auto future = v1;
+	future[0] = 9;
+	EXPECT_THROW(b->loadPlaceIndex(mapOf(lms, future)), std::runtime_error);
+	auto some = v1;
+	some[v1.size() - 12] = 10;  // rings
+	some[v1.size() - 10] = 60;  // sectors
+	some[v1.size() - 8] = 3;    // the count's low byte (little-endian): no cells follow
+	EXPECT_ANY_THROW(b->loadPlaceIndex(mapOf(lms, some)));
+	auto huge = some;
+	huge[v1.size() - 1] = 0x7f;  // its high byte: more contexts than the index has bytes
+	EXPECT_THROW(b->loadPlaceIndex(mapOf(lms, huge)), std::runtime_error);
+
+	auto withContexts = makeDetector();
+	const auto lm = localMap(1, 1, true);
+	withContexts->index(*lm, descriptors(1));
+	auto bad = withContexts->savePlaceIndex();
+	// The one context's cell count (4 bytes before its 600 cells, at the end) made 599.
+	ASSERT_GT(bad.size(), 604u);
+	bad[bad.size() - 604] = static_cast<uint8_t>(599 & 0xff);
+	bad[bad.size() - 603] = static_cast<uint8_t>(599 >> 8);
+	EXPECT_THROW(b->loadPlaceIndex(mapOf({lm}, bad)), std::runtime_error);
+}
