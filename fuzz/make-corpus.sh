@@ -94,9 +94,11 @@ DICT
 
 # --- a small map: 30 VLP-16 scans through the whole system with an online vocabulary (the
 # shipped one would make the index 600 kB) and two keyframes a local map, so that the map has
-# two local maps, their graph and a place index.
+# two local maps, their graph and a place index; with polar contexts (LocalMap version 2, place
+# index version 1).
 run "$sim" --scenario "$scen" --scans 30 --lidar vlp16 -o "$work/town-30.rawlog"
-sed -e 's|^\( *vocabulary_file:\).*|\1 ""|' -e 's|^\( *keyframes_per_map:\) *[0-9]*|\1 2|' \
+sed -e 's|^\( *vocabulary_file:\).*|\1 ""|' \
+  -e 's|^\( *\)keyframes_per_map: *[0-9]*|\1keyframes_per_map: 2\n\1place_query_keyframes: 2\n\1polar_contexts: true|' \
   "$src/share/rasterslam/config/slam.yaml" >"$work/slam-small.yaml"
 run "$bin/rasterslam" run --rawlog "$work/town-30.rawlog" --config "$work/slam-small.yaml" \
   --out "$work/run" --map-out "$work/map" --save-images --quiet

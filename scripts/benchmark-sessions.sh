@@ -77,7 +77,7 @@ routes=(
 )
 map="$WORK/map"
 align=""
-printf '%-8s %-6s %6s %8s %9s %-8s %9s %9s %9s %10s %10s %9s\n' session lidar scans changes revisits \
+printf '%-8s %-6s %6s %8s %9s %-9s %9s %9s %9s %10s %10s %9s\n' session lidar scans changes revisits \
   located hits ate_m peak_mb map_mem_mb map_disk_mb ms_scan
 earlier=()
 total_scans=0
@@ -116,8 +116,13 @@ for i in "${!routes[@]}"; do
     align=$(json "$j" .T_gt_est)
   fi
   j=$("$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --json --align "$align")
-  located=$([ "$n" = 1 ] && echo origin || yamlv "$out/run.yaml" localized_in_prior_map)
-  printf '%-8s %-6s %6s %8s %9s %-8s %9s %9.3f %9.1f %10.2f %10.2f %9.2f\n' "$n" "$lidar" "$scans" \
+  # Located: at which scan its keyframe anchored the session.
+  located=origin
+  if [ "$n" != 1 ]; then
+    located=$(yamlv "$out/run.yaml" localized_in_prior_map)
+    [ "$located" = true ] && located="scan $(yamlv "$out/run.yaml" localized_at_scan)"
+  fi
+  printf '%-8s %-6s %6s %8s %9s %-9s %9s %9.3f %9.1f %10.2f %10.2f %9.2f\n' "$n" "$lidar" "$scans" \
     "${changes:-0}" "${revisits:--}" "$located" \
     "$(yamlv "$out/run.yaml" prior_map_hits)" "$(json "$j" .ate_rmse_m)" "$(yamlv "$out/run.yaml" peak_rss_mb)" \
     "$(yamlv "$out/run.yaml" map_memory_mb)" "$(du -sm "$map" | cut -f1)" \

@@ -12,6 +12,7 @@
 #include <rasterslam/map/map.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -466,6 +467,7 @@ TEST(Mapping, ASessionIsAnchoredOnlyWhenSeveralHitsAgree)
 	EXPECT_NE(r.output.find("NOT located in the prior map"), std::string::npos) << r.output;
 	EXPECT_NE(r.output.find("the map is not saved"), std::string::npos) << r.output;
 	EXPECT_GE(yamlNumber(dir / "s2/run.yaml", "prior_map_hits"), 2);
+	EXPECT_TRUE(std::isnan(yamlNumber(dir / "s2/run.yaml", "localized_at_scan")));
 	std::ifstream f2(mapFilePath(map), std::ios::binary);
 	EXPECT_EQ(std::string((std::istreambuf_iterator<char>(f2)), {}),
 	          before);  // the map is untouched
@@ -943,6 +945,9 @@ TEST(Mapping, LifelongConfigLocatesAnotherSensorInAChangedTown)
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	EXPECT_NE(r.output.find("located in the prior map"), std::string::npos) << r.output;
 	EXPECT_GE(yamlNumber(dir / "o2/run.yaml", "prior_map_hits"), 3);
+	// The scan that anchored it: three hits 1 s apart (engine.anchor_hit_spacing_s) at 10 Hz
+	// take at least 20 scans after the first.
+	EXPECT_GE(yamlNumber(dir / "o2/run.yaml", "localized_at_scan"), 20);
 	// In the map's frame: session 2 judged with session 1's alignment to the world.
 	const auto eval = [&](const std::string& out, const std::string& align)
 	{

@@ -2,6 +2,7 @@
 // origin matches itself at the sector shift of the turn, other scenes do not, and the index
 // ranks the turned scene's own place first among many.
 #include <gtest/gtest.h>
+#include <rasterslam/places/fusion.h>
 #include <rasterslam/places/polar_context.h>
 
 #include <algorithm>
@@ -235,3 +236,72 @@ TEST(PolarContext, ContextsOfOtherDimensionsAreRefused)
 }
 
 }  // namespace
+
+TEST(PlaceFusion, ReciprocalRanksAreSummedAndTiesGoToTheBetterSingleRank)
+{
+	// K 10: rank r scores 1 / (11 + r).
+	const auto f = places::fuseRankings({7, 3, 5, 9}, {5, 8, 3}, 10);
+	ASSERT_EQ(f.size(), 5u);
+	const auto sumOf = [&](uint64_t id)
+	{
+		for (const auto& p : f)
+			if (p.id == id)
+				return p.sum;
+		return -1.0;
+	};
+	EXPECT_DOUBLE_EQ(sumOf(5), 1.0 / 13 + 1.0 / 11);  // third and first
+	EXPECT_DOUBLE_EQ(sumOf(3), 1.0 / 12 + 1.0 / 13);
+	EXPECT_DOUBLE_EQ(sumOf(9), 1.0 / 14);
+	// Those in both rankings first: 5 (0.168), 3 (0.160); then 7 (first in the first only,
+	// 0.091), 8 (second in the second only, 0.083), 9 (0.071).
+	const std::vector<uint64_t> order{5, 3, 7, 8, 9};
+	for (std::size_t i = 0; i < order.size(); i++)
+		EXPECT_EQ(f[i].id, order[i]) << "at " << i;
+	EXPECT_EQ(f[0].firstRank, 2u);
+	EXPECT_EQ(f[0].secondRank, 0u);
+	EXPECT_EQ(f[0].bestRank, 0u);
+	EXPECT_EQ(f[2].secondRank, SIZE_MAX);  // 7: not in the second ranking
+	EXPECT_EQ(f[3].firstRank, SIZE_MAX);   // 8: not in the first
+
+	// Equal sums: of a place r-th in one ranking only and another r-th in the other only, the
+	// first ranking's goes first, whatever the ids.
+	const auto t = places::fuseRankings({40, 20}, {30, 10}, 10);
+	ASSERT_EQ(t.size(), 4u);
+	EXPECT_EQ(t[0].id, 40u);
+	EXPECT_EQ(t[1].id, 30u);
+	EXPECT_EQ(t[2].id, 20u);
+	EXPECT_EQ(t[3].id, 10u);
+	EXPECT_TRUE(places::fuseRankings({}, {}, 10).empty());
+}
+
+TEST(PlaceFusion, PlacesRankByTheirBestContextAgainstAnyQuery)
+{
+	// 30 places of 2 contexts each (contexts 2p and 2p + 1 belong to place 100 + p).
+	places::PolarIndex index;
+	for (uint32_t c = 0; c < 60; c++)
+		index.add(places::polarContext(scene(500 + c)));
+	const auto placeOf = [](std::size_t c) -> uint64_t { return 100 + c / 2; };
+	// A query turned from context 13 (place 106) ranks place 106 first, once.
+	const auto one =
+	    places::rankPlaces(index, {places::polarContext(turned(scene(513), 0.5))}, placeOf, 30);
+	ASSERT_EQ(one.size(), 30u);
+	EXPECT_EQ(one[0].id, 106u);
+	for (std::size_t i = 1; i < one.size(); i++)
+	{
+		EXPECT_NE(one[i].id, 106u);
+		EXPECT_LE(one[i - 1].match.distance, one[i].match.distance);
+	}
+	// Two queries: each place at its best against either; places 106 and 120 (context 40)
+	// first; at most maxPlaces.
+	const auto two = places::rankPlaces(
+	    index, {places::polarContext(scene(513)), places::polarContext(scene(540))}, placeOf, 5);
+	ASSERT_EQ(two.size(), 5u);
+	EXPECT_EQ(std::min(two[0].id, two[1].id), 106u);
+	EXPECT_EQ(std::max(two[0].id, two[1].id), 120u);
+	EXPECT_LT(two[1].match.distance, 1e-6);
+	// A query of other dimensions is an error.
+	places::PolarParams other;
+	other.sectors = 30;
+	EXPECT_THROW(places::rankPlaces(index, {places::polarContext(scene(1), other)}, placeOf, 5),
+	             std::invalid_argument);
+}

@@ -17,14 +17,14 @@ namespace
 {
 constexpr const char* kClass = "rasterslam::BowLoopDetector";
 
-std::shared_ptr<LoopDetector> makeDetector()
+std::shared_ptr<LoopDetector> makeDetector(const std::string& params = "polar_fusion: true\n")
 {
 	PluginLoader::instance().load();
 	auto d = PluginLoader::instance().create<LoopDetector>(kClass);
 	d->initialize(yaml::FromText(
 	    "vocabulary_file: " +
-	    test::sourcePath("share/rasterslam/vocab/elevation-localmaps-3m-k10l4.vocab") +
-	    "\npolar_fusion: true\n"));
+	    test::sourcePath("share/rasterslam/vocab/elevation-localmaps-3m-k10l4.vocab") + "\n" +
+	    params));
 	return d;
 }
 
@@ -161,4 +161,80 @@ TEST(PolarPlaceIndex, AnIndexWrittenBeforeTheContextsLoadsAndDamageIsRefused)
 	bad[bad.size() - 604] = static_cast<uint8_t>(599 & 0xff);
 	bad[bad.size() - 603] = static_cast<uint8_t>(599 >> 8);
 	EXPECT_THROW(b->loadPlaceIndex(mapOf({lm}, bad)), std::runtime_error);
+}
+
+namespace
+{
+/** Local map `id` of one keyframe with 200 features: seeded points within 30 m and
+ *  descriptors, and (when `context`) the context of scene(10 * id) about the keyframe. */
+LocalMap::Ptr featureMap(uint64_t id, bool context)
+{
+	auto lm = localMap(id, 1, context);
+	std::mt19937 rng(static_cast<uint32_t>(id));
+	std::uniform_real_distribution<float> u(-30, 30);
+	lm->descriptors = descriptors(static_cast<uint32_t>(1000 + id));
+	for (std::size_t i = 0; i < lm->descriptors.size() / 32; i++)
+	{
+		lm->xyz.insert(lm->xyz.end(), {u(rng), u(rng), 0.2f * u(rng)});
+		lm->observers.push_back(1);
+	}
+	return lm;
+}
+}  // namespace
+
+TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
+{
+	// The true place (local map 1) has an image with no words (so none shared with the query);
+	// three others have the query's own words but other features and no contexts. The words
+	// put the three first; the query's context, that of the true place, puts it first in the
+	// fused ranking. Only the first max_candidates + 1 (here 3) are verified.
+	const auto truth = featureMap(1, true);
+	std::vector<LocalMap::Ptr> lms = {truth};
+	for (uint64_t id = 2; id <= 4; id++)
+		lms.push_back(featureMap(id, false));
+	Map map;
+	map.sessions = 1;
+	for (const auto& lm : lms)
+	{
+		map.localMaps[lm->id] = lm;
+		auto kf = std::make_shared<Keyframe>();
+		kf->id = lm->anchor();
+		map.keyframes[kf->id] = kf;
+		map.priorPoses[kf->id] = mrpt::poses::CPose3D();
+	}
+	PoseView poses;
+	poses.prior = &map.priorPoses;
+	// The query: the true place's features and context, as another map's local map.
+	LocalMap query = *truth;
+	query.id = 99;
+	query.keyframes = {9900};
+
+	const auto locate = [&](const std::string& params)
+	{
+		auto d = makeDetector(params + "max_candidates: 2\n");
+		for (const auto& lm : lms)
+			d->index(*lm, lm->id == 1 ? std::vector<uint8_t>{} : truth->descriptors);
+		return d->locate(query, map, poses, 0);
+	};
+	// The words alone verify the three others, which do not match.
+	const auto words = locate("polar_fusion: false\n");
+	EXPECT_FALSE(words.found) << words.reason;
+	// Fused: the true place is verified and found where it is. Its words' score (computed
+	// only now: the words never ranked it) is under min_score, so polar_max_distance decides.
+	const auto fused = locate("polar_fusion: true\npolar_max_distance: 0.05\n");
+	ASSERT_TRUE(fused.found) << fused.reason;
+	EXPECT_EQ(fused.localMap, 1u);
+	EXPECT_GE(fused.inliers, 150u);
+	EXPECT_LT(fused.pose.norm(), 1e-3);
+	// Without polar_max_distance its words' score (0) refuses it before any matching; the
+	// other two verified do not match.
+	const auto scored = locate("polar_fusion: true\n");
+	EXPECT_FALSE(scored.found);
+	EXPECT_EQ(scored.reason, "inliers");
+	// A query context of other dimensions than the index's is ranked by its words only.
+	query.contextSectors = 30;
+	query.contextCells.resize(10 * 30);
+	const auto other = locate("polar_fusion: true\npolar_max_distance: 0.05\n");
+	EXPECT_FALSE(other.found);
+	EXPECT_NE(other.reason, "score");
 }

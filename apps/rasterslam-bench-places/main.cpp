@@ -20,6 +20,7 @@
 #include <rasterslam/features/rigid_ransac.h>
 #include <rasterslam/io/kitti.h>
 #include <rasterslam/io/trajectory_io.h>
+#include <rasterslam/places/fusion.h>
 #include <rasterslam/places/polar_context.h>
 #include <rasterslam/places/turned_views.h>
 #include <rasterslam/raster/elevation_image.h>
@@ -653,10 +654,18 @@ int run(const Args& a)
 		std::vector<bow::Database::View> views{{&q.img.words, q.img.selfScore}};
 		for (const auto& [w, self] : q.img.turns)
 			views.push_back({&w, self, gTurnWeight});
-		const auto res = db.queryViews(views, nres);
-		ms.push_back(
+		// With --polar the words' first 50 are fused: queried once, the first nres of them are
+		// the words' own ranking.
+		auto res = db.queryViews(views, gPolar ? std::max<std::size_t>(nres, 50) : nres);
+		const auto wordsMs =
 		    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq)
-		        .count());
+		        .count();
+		ms.push_back(wordsMs);
+		std::vector<uint64_t> wordsRanked;  // --polar: the words' first 50
+		for (const auto& r : res)
+			wordsRanked.push_back(r.entry);
+		if (res.size() > nres)
+			res.resize(nres);
 		const auto placeOf = [&](bow::Database::EntryId e)
 		{ return static_cast<std::size_t>(std::find(ids.begin(), ids.end(), e) - ids.begin()); };
 		const auto isTrue = [&](bow::Database::EntryId e)
@@ -670,52 +679,23 @@ int run(const Args& a)
 		{
 			const auto tq2 = std::chrono::steady_clock::now();
 			// Each place once, at its best context.
-			std::vector<bow::Database::EntryId> pres;
-			for (const auto& r : polarIndex.query(q.img.polar.front(), 250))
-				if (std::find(pres.begin(), pres.end(), ids[polarPlace[r.id]]) == pres.end() &&
-				    pres.size() < 50)
-					pres.push_back(ids[polarPlace[r.id]]);
+			std::vector<uint64_t> pres;
+			for (const auto& r : places::rankPlaces(
+			         polarIndex, {q.img.polar.front()},
+			         [&](std::size_t c) -> uint64_t { return ids[polarPlace[c]]; }, 50))
+				pres.push_back(r.id);
 			polar.ms.push_back(
 			    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq2)
 			        .count());
-			polarRanked = pres;
-			// Reciprocal-rank fusion of the two rankings' first 50: 1 / (K + rank), summed.
-			// Equal sums (a place r-th in one ranking only, against another r-th in the other
-			// only) go to the better single rank, then to the words' rank.
-			const auto bres = db.queryViews(views, 50);
-			struct Fused
-			{
-				bow::Database::EntryId entry;
-				double score = 0;
-				std::size_t bestRank = SIZE_MAX, wordsRank = SIZE_MAX;
-			};
-			std::vector<Fused> fused;
-			const auto addRank = [&](bow::Database::EntryId e, std::size_t r, bool words)
-			{
-				auto it = std::find_if(fused.begin(), fused.end(),
-				                       [&](const Fused& f) { return f.entry == e; });
-				if (it == fused.end())
-					it = fused.insert(fused.end(), Fused{e});
-				it->score += 1.0 / (gFuseK + static_cast<double>(r) + 1);
-				it->bestRank = std::min(it->bestRank, r);
-				if (words)
-					it->wordsRank = r;
-			};
-			for (std::size_t r = 0; r < bres.size(); r++)
-				addRank(bres[r].entry, r, true);
-			for (std::size_t r = 0; r < pres.size(); r++)
-				addRank(pres[r], r, false);
-			std::sort(fused.begin(), fused.end(),
-			          [](const Fused& x, const Fused& y)
-			          {
-				          return std::tie(y.score, x.bestRank, x.wordsRank, x.entry) <
-				                 std::tie(x.score, y.bestRank, y.wordsRank, y.entry);
-			          });
-			for (const auto& f : fused)
-				candidates.push_back(f.entry);
-			polar.fusedMs.push_back(
-			    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tq2)
-			        .count());
+			polarRanked.assign(pres.begin(), pres.end());
+			// Reciprocal-rank fusion of the two rankings' first 50 (as the loop detector's
+			// polar_fusion does).
+			for (const auto& f : places::fuseRankings(wordsRanked, pres, gFuseK))
+				candidates.push_back(static_cast<bow::Database::EntryId>(f.id));
+			// The words' query (once, for both) and the polar ranking and fusion.
+			polar.fusedMs.push_back(wordsMs + std::chrono::duration<double, std::milli>(
+			                                      std::chrono::steady_clock::now() - tq2)
+			                                      .count());
 		}
 		if (!gPolar)
 			for (const auto& r : res)
@@ -1040,7 +1020,8 @@ int run(const Args& a)
 		    "polar contexts: recall@1 %.3f, recall@5 %.3f (same way %zu, other way %zu); query "
 		    "%.3f ms median, %.3f ms max\n"
 		    "fused with the words (reciprocal rank, K %d): recall@1 %.3f, recall@5 %.3f (same way "
-		    "%zu, other way %zu); query %.3f ms median (polar, 50 words, fusion); --verify "
+		    "%zu, other way %zu); query %.3f ms median (the words' 50 best, polar, fusion); "
+		    "--verify "
 		    "verifies these\n",
 		    shareOf(polar.at1), shareOf(polar.at5), polar.at5 - polar.oppAt5, polar.oppAt5,
 		    polarMedian, polarWorst, gFuseK, shareOf(polar.fusedAt1), shareOf(polar.fusedAt5),

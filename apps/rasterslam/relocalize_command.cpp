@@ -102,7 +102,9 @@ int relocalizeCommand(const RelocalizeArgs& args)
 			if (last && scan->index > *last)
 				break;
 			engine.rasterizer()->rasterize(*scan, raster);
-			const auto r = engine.loopDetector()->relocalize(*scan, raster, map, poses);
+			// By the map manager's polar context of the scan too, when the map was made with them.
+			const auto r = engine.loopDetector()->relocalizeScan(
+			    *scan, raster, engine.mapManager()->placeContextOf(*scan, raster), map, poses);
 			const mrpt::poses::CPose3DQuat q(r.pose);
 			txt += mrpt::format(
 			    "%.6f %s %s %llu %llu %.6f %.6f %zu %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n",

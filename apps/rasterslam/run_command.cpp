@@ -502,6 +502,8 @@ int runCommand(const RunArgs& args)
 	{
 		summary["localized_in_prior_map"] = res.localized;
 		summary["prior_map_hits"] = static_cast<uint64_t>(res.anchorHits);
+		if (res.localizedAtScan)
+			summary["localized_at_scan"] = static_cast<uint64_t>(*res.localizedAtScan);
 	}
 	if (unlocated && !mapOut.empty() && runError.empty())
 		runError = "the session was never located in the prior map " + mapIn +

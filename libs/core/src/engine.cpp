@@ -418,7 +418,10 @@ RunResult Engine::run(ScanSource& source, const RunOptions& opts)
 			    (atKeyframe || anchorEveryScan_))
 				seekAnchor(s, *scan, *raster, rec);
 			if (s.anchorReady && !s.anchored && atKeyframe)
+			{
 				relocEdge = anchor(s);
+				s.res.localizedAtScan = scan->index;
+			}
 			if (!relocEdge && s.anchored && loopDetector_ && raster && s.haveKf &&
 			    odo.status == TrackingStatus::Lost && relocalizeOnLoss_)
 				relocEdge = relocalizeAfterLoss(s, *scan, *raster, rec);
@@ -703,7 +706,8 @@ void Engine::seekAnchor(RunState& s, const Scan& scan, const RasterFrame& raster
 	// it (it holds this lock for a whole keyframe's work).
 	std::lock_guard<std::mutex> mapLock(s.backend.mapMutex());
 	const Map& map = mapManager_->map();
-	const RelocalizationResult rl = loopDetector_->relocalize(scan, raster, map, s.poses);
+	const RelocalizationResult rl = loopDetector_->relocalizeScan(
+	    scan, raster, mapManager_->placeContextOf(scan, raster), map, s.poses);
 	// Only an earlier session's local map can anchor this one (its own are in its own frame).
 	const bool earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
 	rec.ms.loop += msSince(t0);
@@ -783,7 +787,8 @@ std::optional<LoopConstraint> Engine::relocalizeAfterLoss(RunState& s, const Sca
 	RelocalizationResult rl;
 	{
 		std::lock_guard<std::mutex> lk(s.backend.mapMutex());
-		rl = loopDetector_->relocalize(scan, raster, mapManager_->map(), s.poses);
+		rl = loopDetector_->relocalizeScan(scan, raster, mapManager_->placeContextOf(scan, raster),
+		                                   mapManager_->map(), s.poses);
 	}
 	rec.ms.loop += msSince(t0);
 	std::optional<mrpt::poses::CPose3D> matched;  // the keyframe, when a node of this graph

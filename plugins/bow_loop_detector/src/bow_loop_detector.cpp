@@ -37,6 +37,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	polarResults_ = p.getInt("polar_results", 50);
 	fuseK_ = p.getDouble("fuse_k", 10);
 	polarMaxDistance_ = p.getDouble("polar_max_distance", 0);
+	polarRelocalization_ = p.getBool("polar_relocalization", polarRelocalization_);
 	p.requireAtLeast(polarParams_.ringCandidates, 1, "polar_candidates");
 	p.requireRange(polarParams_.shiftCandidates, 1, 720, "polar_shift_candidates");
 	p.requireAtLeast(polarResults_, 1, "polar_results");
@@ -504,19 +505,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		// nothing of a place: it is normalized by its own halves.
 		const double imageSelf = db_.size() > 0 && imageQuery ? selfScore(imageDesc) : 0;
 		// polar_fusion: the place query's context ranks the places too.
-		const PlaceContext* qc = kf.placeQueryContext;
-		bool fuse = polarFusion_ && polar_ && polar_->size() > 0 && qc && !qc->empty();
-		if (fuse &&
-		    (qc->rings != polar_->params().rings || qc->sectors != polar_->params().sectors ||
-		     qc->cells.size() != std::size_t{qc->rings} * qc->sectors))
-		{
-			MRPT_LOG_THROTTLE_WARN_STREAM(
-			    5.0, "the place query's polar context ("
-			             << qc->rings << " x " << qc->sectors << " cells) is not of the index's "
-			             << polar_->params().rings << " x " << polar_->params().sectors
-			             << ": ranked by its words only");
-			fuse = false;
-		}
+		const bool fuse = canFuse(kf.placeQueryContext);
 		const auto n =
 		    static_cast<std::size_t>(fuse ? std::max(maxResults_, polarResults_) : maxResults_);
 		const auto results = db_.size() == 0 ? std::vector<bow::Database::Result>{}
@@ -530,12 +519,16 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		                                    : own;
 		std::vector<Candidate> candidates;
 		if (fuse)
-			candidates = fusedCandidates(results, b, *qc);
+		{
+			const auto& qc = *kf.placeQueryContext;
+			candidates =
+			    fusedCandidates(results, {contextOf(qc.rings, qc.sectors, qc.cells.data())});
+		}
 		else
 			for (const auto& r : results)
 				candidates.push_back({entryMap_.at(r.entry), r.score, -1, false});
 		int examined = 0;
-		for (const auto& r : candidates)
+		for (auto& r : candidates)
 		{
 			const auto it = map.localMaps.find(r.localMap);
 			if (it == map.localMaps.end())
@@ -554,6 +547,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 			const auto& lm = *data;
 			LoopDecision d;
 			d.queryStamp = kf.stamp;
+			scoreOf(r, b);  // ranked by its context only: its words' score is needed now
 			d.score = norm > 1e-6 ? r.rawScore / norm : 0;
 			d.byContext = r.byContext;
 			const auto fit = verify(q, lm, static_cast<uint32_t>(kf.node * 31 + lm.id), keyframes);

@@ -41,6 +41,9 @@ class BowLoopDetector : public LoopDetector
 	                                                  const PoseView& poses) override;
 	RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster, const Map& map,
 	                                const PoseView& poses) override;
+	RelocalizationResult relocalizeScan(const Scan& scan, const RasterFrame& raster,
+	                                    const PlaceContext& context, const Map& map,
+	                                    const PoseView& poses) override;
 	RelocalizationResult locate(const LocalMap& query, const Map& map, const PoseView& poses,
 	                            int onlyKeyframe) override;
 	bool forget(uint64_t localMap) override;
@@ -68,6 +71,9 @@ class BowLoopDetector : public LoopDetector
 		/** icp_refine: makes the query's surface (its scan reduced to one point a voxel, its
 		 *  frame), when it has one; called only once a place is found. */
 		std::function<std::vector<Eigen::Vector3f>()> surface;
+		/** polar_fusion: the query's polar contexts (of the index's dimensions; a place ranks
+		 *  by its best context against any of them); none: ranked by the words alone. */
+		std::vector<places::PolarContext> contexts;
 	};
 	using TurnedView = places::TurnedView;
 	/** What a place scores against itself: the BOW score of a query's even features against
@@ -231,6 +237,10 @@ class BowLoopDetector : public LoopDetector
 	/** A fused candidate this close to the query's context (polar distance) is acceptable
 	 *  once verified whatever its words' score; 0: the score decides alone. */
 	double polarMaxDistance_ = 0;
+	/** With polar_fusion, a relocalized scan's places are ranked by its own context too (a
+	 *  single scan's against the local maps'); false: by its words only. Off: on the ten
+	 *  sessions it brought wrong places to the verification (README, Place ranking). */
+	bool polarRelocalization_ = false;
 	std::unique_ptr<places::PolarIndex> polar_;
 	std::map<std::size_t, uint64_t> polarMap_;  //!< context -> local map
 	/** Adds the contexts of `lm` (none when it has none or the index holds others'). */
@@ -244,13 +254,23 @@ class BowLoopDetector : public LoopDetector
 		double rawScore = 0;
 		double polarDistance = -1;
 		bool byContext = false;  //!< not among the words' first max_results
+		/** false: ranked by its context only, rawScore not computed yet (scoreOf()). */
+		bool scored = true;
 	};
-	/** The words' ranking `words` (of the query's words `b`) and the polar contexts' ranking
-	 *  of query context `q` fused by reciprocal rank: each ranking's first polar_results
-	 *  local maps score 1 / (fuse_k + rank) in it; equal sums go to the better single rank,
-	 *  then the words' rank. */
+	/** Whether polar_fusion can rank with the query context `q`: it is on, the index holds
+	 *  contexts and `q` is one of their dimensions (a throttled warning when it is not). */
+	bool canFuse(const PlaceContext* q);
+	/** A context as PlaceContext and LocalMap keep them (cells in kContextStep_m steps). */
+	static places::PolarContext contextOf(uint16_t rings, uint16_t sectors, const uint8_t* cells);
+	/** The words' ranking `words` and the polar contexts' ranking of the query contexts
+	 *  `queries` fused by reciprocal rank (places::fuseRankings, K fuse_k): each ranking's
+	 *  first polar_results local maps (all of the words' first max_results). A place the
+	 *  words did not rank is not scored yet (scored false). */
 	std::vector<Candidate> fusedCandidates(const std::vector<bow::Database::Result>& words,
-	                                       const bow::BowVector& b, const PlaceContext& q) const;
+	                                       const std::vector<places::PolarContext>& queries) const;
+	/** The words' raw score of a local map against the query's words `b` (0 when the
+	 *  database has no entry for it), filled in once for a candidate not yet scored. */
+	void scoreOf(Candidate& c, const bow::BowVector& b) const;
 
 	// parameters
 	std::string vocabularyFile_;

@@ -2,6 +2,8 @@
 // the places, free of the pixel grid that changes an image's words when a place is seen
 // turned, fused with the words' ranking by reciprocal rank (rasterslam-bench-places --polar
 // measured the fusion among 1,008 local maps: recall@5 0.80 -> 0.96).
+#include <rasterslam/places/fusion.h>
+
 #include "bow_loop_detector.h"
 
 using namespace rasterslam;
@@ -51,72 +53,80 @@ bool BowLoopDetector::forgetContexts(uint64_t localMap)
 	return found;
 }
 
-std::vector<BowLoopDetector::Candidate> BowLoopDetector::fusedCandidates(
-    const std::vector<bow::Database::Result>& words, const bow::BowVector& b,
-    const PlaceContext& q) const
+bool BowLoopDetector::canFuse(const PlaceContext* q)
 {
-	struct Fused
-	{
-		Candidate c;
-		double sum = 0;
-		std::size_t bestRank = SIZE_MAX, wordsRank = SIZE_MAX, polarRank = SIZE_MAX;
-	};
-	std::vector<Fused> fused;
-	std::map<uint64_t, std::size_t> at;  // local map -> its entry in fused
-	const auto rank = [&](uint64_t lm, std::size_t r, bool byWords) -> Fused&
-	{
-		auto [it, isNew] = at.emplace(lm, fused.size());
-		if (isNew)
-			fused.push_back(Fused{Candidate{lm}});
-		auto& f = fused[it->second];
-		f.sum += 1.0 / (fuseK_ + static_cast<double>(r) + 1);
-		f.bestRank = std::min(f.bestRank, r);
-		(byWords ? f.wordsRank : f.polarRank) = r;
-		return f;
-	};
-	// The words' candidates without the contexts are all kept, however few polar_results is.
+	if (!polarFusion_ || !polar_ || polar_->size() == 0 || !q || q->empty())
+		return false;
+	if (q->rings == polar_->params().rings && q->sectors == polar_->params().sectors &&
+	    q->cells.size() == std::size_t{q->rings} * q->sectors)
+		return true;
+	MRPT_LOG_THROTTLE_WARN_STREAM(
+	    5.0, "the query's polar context ("
+	             << q->rings << " x " << q->sectors << " cells) is not of the index's "
+	             << polar_->params().rings << " x " << polar_->params().sectors
+	             << ": ranked by its words only");
+	return false;
+}
+
+places::PolarContext BowLoopDetector::contextOf(uint16_t rings, uint16_t sectors,
+                                                const uint8_t* cells)
+{
+	return places::polarContextOfCells(rings, sectors, cells, LocalMap::kContextStep_m);
+}
+
+std::vector<BowLoopDetector::Candidate> BowLoopDetector::fusedCandidates(
+    const std::vector<bow::Database::Result>& words,
+    const std::vector<places::PolarContext>& queries) const
+{
 	const auto n = static_cast<std::size_t>(polarResults_);
+	// The words' candidates without the contexts are all kept, however few polar_results is.
+	std::vector<uint64_t> byWords;
+	std::map<uint64_t, double> rawScore;
 	for (std::size_t r = 0; r < words.size() && r < std::max<std::size_t>(n, maxResults_); r++)
-		rank(entryMap_.at(words[r].entry), r, true).c.rawScore = words[r].score;
-	// A local map is ranked by its best context (one about each keyframe).
-	const auto ctx =
-	    places::polarContextOfCells(q.rings, q.sectors, q.cells.data(), LocalMap::kContextStep_m);
-	std::set<uint64_t> seen;
-	std::size_t r = 0;
-	for (const auto& res : polar_->query(ctx, std::max<std::size_t>(n * 8, 64)))
 	{
-		const uint64_t lm = polarMap_.at(res.id);
-		if (!seen.insert(lm).second)
-			continue;
-		rank(lm, r++, false).c.polarDistance = res.match.distance;
-		if (r >= n)
-			break;
+		byWords.push_back(entryMap_.at(words[r].entry));
+		rawScore[byWords.back()] = words[r].score;
 	}
-	std::sort(fused.begin(), fused.end(),
-	          [](const Fused& x, const Fused& y)
-	          {
-		          return std::tie(y.sum, x.bestRank, x.wordsRank, x.c.localMap) <
-		                 std::tie(x.sum, y.bestRank, y.wordsRank, y.c.localMap);
-	          });
-	// A place ranked by its context only is scored by its words all the same (min_score).
-	std::map<uint64_t, bow::Database::EntryId> entryOf;
-	for (const auto& f : fused)
-		if (f.wordsRank == SIZE_MAX && entryOf.empty())
-			for (const auto& [e, lm] : entryMap_)
-				entryOf[lm] = e;
-	std::vector<Candidate> out;
-	out.reserve(fused.size());
-	for (auto& f : fused)
+	// A local map is ranked by its best context (one about each of its keyframes).
+	const auto byPolar = places::rankPlaces(
+	    *polar_, queries, [this](std::size_t c) { return polarMap_.at(c); }, n);
+	std::vector<uint64_t> polarIds;
+	std::map<uint64_t, double> distance;
+	for (const auto& p : byPolar)
 	{
+		polarIds.push_back(p.id);
+		distance[p.id] = p.match.distance;
+	}
+	std::vector<Candidate> out;
+	for (const auto& f : places::fuseRankings(byWords, polarIds, fuseK_))
+	{
+		Candidate c{f.id};
+		if (const auto it = rawScore.find(f.id); it != rawScore.end())
+			c.rawScore = it->second;
+		else
+			c.scored = false;  // scored when it is examined (scoreOf)
+		if (const auto it = distance.find(f.id); it != distance.end())
+			c.polarDistance = it->second;
 		// Ranked by its context and not among the words' first 20 (max_results): no
 		// candidate of the words alone.
-		f.c.byContext =
-		    f.polarRank != SIZE_MAX &&
-		    (f.wordsRank == SIZE_MAX || f.wordsRank >= static_cast<std::size_t>(maxResults_));
-		if (f.wordsRank == SIZE_MAX)
-			if (const auto e = entryOf.find(f.c.localMap); e != entryOf.end())
-				f.c.rawScore = bow::Vocabulary::score(b, db_.bowVector(e->second));
-		out.push_back(f.c);
+		c.byContext =
+		    f.secondRank != SIZE_MAX &&
+		    (f.firstRank == SIZE_MAX || f.firstRank >= static_cast<std::size_t>(maxResults_));
+		out.push_back(c);
 	}
 	return out;
+}
+
+void BowLoopDetector::scoreOf(Candidate& c, const bow::BowVector& b) const
+{
+	if (c.scored)
+		return;
+	c.scored = true;
+	c.rawScore = 0;
+	for (const auto& [e, lm] : entryMap_)
+		if (lm == c.localMap)
+		{
+			c.rawScore = bow::Vocabulary::score(b, db_.bowVector(e));
+			return;
+		}
 }

@@ -9,6 +9,13 @@ using namespace rasterslam;
 RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterFrame& raster,
                                                  const Map& map, const PoseView& poses)
 {
+	return relocalizeScan(scan, raster, PlaceContext{}, map, poses);
+}
+
+RelocalizationResult BowLoopDetector::relocalizeScan(const Scan& scan, const RasterFrame& raster,
+                                                     const PlaceContext& context, const Map& map,
+                                                     const PoseView& poses)
+{
 	RelocalizationResult res;
 	if (!vocab_ || db_.size() == 0)
 	{
@@ -42,6 +49,8 @@ RelocalizationResult BowLoopDetector::relocalize(const Scan& scan, const RasterF
 		q.groups = groupsOf(q.desc);
 	if (icpRefine_)
 		q.surface = [this, &scan] { return surfaceOf(scan); };
+	if (polarRelocalization_ && canFuse(&context))
+		q.contexts.push_back(contextOf(context.rings, context.sectors, context.cells.data()));
 	if (canonicalYaw_)
 	{
 		const auto words = canonicalWords(scan, raster);
@@ -83,6 +92,22 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 		q.groups = groupsOf(q.desc);
 	if (icpRefine_ && onlyKeyframe < 0)
 		q.surface = [&query] { return surfaceOf(query); };
+	// polar_fusion: the query's contexts (about the keyframe, or about each of them) rank the
+	// places too, when it was made with contexts of the index's dimensions.
+	const std::size_t cells = std::size_t{query.contextRings} * query.contextSectors;
+	for (std::size_t k = 0; k < query.contexts(); k++)
+	{
+		if (onlyKeyframe >= 0 && k != static_cast<std::size_t>(onlyKeyframe))
+			continue;
+		PlaceContext c;
+		c.rings = query.contextRings;
+		c.sectors = query.contextSectors;
+		c.cells.assign(query.contextCells.begin() + static_cast<std::ptrdiff_t>(k * cells),
+		               query.contextCells.begin() + static_cast<std::ptrdiff_t>((k + 1) * cells));
+		if (!canFuse(&c))
+			break;
+		q.contexts.push_back(contextOf(c.rings, c.sectors, c.cells.data()));
+	}
 	return relocalizeQuery(q, static_cast<uint32_t>(query.id * 29 + 7 + onlyKeyframe), map, poses);
 }
 
@@ -109,9 +134,21 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		vocab_->transform(desc, b);
 	// A single query has no previous keyframe to normalize by (DBoW2 does that for loops).
 	const double norm = selfScore(desc);
+	// The candidates examined: the words' first max_candidates + 1, or with polar_fusion as
+	// many of the words' and the contexts' rankings fused.
 	const auto n = static_cast<std::size_t>(maxCandidates_ + 1);
-	const auto results = turns ? queryWithTurns(b, norm, *turns, n) : db_.query(b, n);
-	if (results.empty())
+	const bool fuse = !q.contexts.empty();
+	const auto m = fuse ? std::max(n, static_cast<std::size_t>(polarResults_)) : n;
+	const auto results = turns ? queryWithTurns(b, norm, *turns, m) : db_.query(b, m);
+	std::vector<Candidate> candidates;
+	if (fuse)
+		candidates = fusedCandidates(results, q.contexts);
+	else
+		for (const auto& r : results)
+			candidates.push_back({entryMap_.at(r.entry), r.score, -1, false});
+	if (candidates.size() > n)
+		candidates.resize(n);
+	if (candidates.empty())
 	{
 		res.reason = "candidates";
 		return res;
@@ -119,28 +156,32 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 	res.reason = "inliers";
 	LocalMap::ConstPtr bestMap;
 	Eigen::Isometry3d bestT = Eigen::Isometry3d::Identity();
-	for (const auto& r : results)
+	for (auto& r : candidates)
 	{
-		const auto it = map.localMaps.find(entryMap_.at(r.entry));
+		const auto it = map.localMaps.find(r.localMap);
 		if (it == map.localMaps.end())
 			continue;
-		const auto data = candidate(map, it->first);  // offline: read from the store
-		if (!data)
-			continue;
-		const auto& lm = *data;
-		const double score = norm > 1e-6 ? r.score / norm : 0;
+		scoreOf(r, b);  // ranked by its context only: its words' score is needed now
+		const double score = norm > 1e-6 ? r.rawScore / norm : 0;
 		// min_score before the verification: a candidate the words do not support costs no
 		// matching (scans of another town against a KITTI map: 90 % score under 0.32; true
-		// places 0.44 and up on the simulated town, 1.04 and up on the KITTI street).
-		if (score < minScore_)
+		// places 0.44 and up on the simulated town, 1.04 and up on the KITTI street), unless
+		// polar_max_distance accepts its context.
+		const bool closeContext =
+		    polarMaxDistance_ > 0 && r.polarDistance >= 0 && r.polarDistance <= polarMaxDistance_;
+		if (score < minScore_ && !closeContext)
 		{
 			if (!res.found && res.inliers == 0)
 			{
 				res.reason = "score";
 				res.score = std::max(res.score, score);
 			}
-			continue;  // the database is sorted by score: the rest scores lower still
+			continue;
 		}
+		const auto data = candidate(map, it->first);  // offline: read from the store
+		if (!data)
+			continue;
+		const auto& lm = *data;
 		const auto fit =
 		    verify(q, lm, static_cast<uint32_t>(seed + lm.id), kAllKeyframes, relocMinInliers_);
 		if (fit.ok && fit.inliers.size() > res.inliers)
@@ -185,12 +226,15 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		// alignment puts them, then decide.
 		const auto surface = q.surface();
 		int tried = 0;
-		for (const auto& r : results)
+		for (auto& r : candidates)
 		{
-			const double score = norm > 1e-6 ? r.score / norm : 0;
-			if (score < minScore_ || tried >= surfaceSearchCandidates_)
+			if (tried >= surfaceSearchCandidates_)
 				break;
-			const auto it = map.localMaps.find(entryMap_.at(r.entry));
+			scoreOf(r, b);
+			const double score = norm > 1e-6 ? r.rawScore / norm : 0;
+			if (score < minScore_)
+				continue;  // in the fused order a lower-scored candidate may come first
+			const auto it = map.localMaps.find(r.localMap);
 			if (it == map.localMaps.end())
 				continue;
 			const auto data = candidate(map, it->first);

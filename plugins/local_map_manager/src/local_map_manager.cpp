@@ -39,6 +39,7 @@ class LocalMapManager : public MapManager
 	void loadMap(const std::string& dir) override;
 	std::size_t removeLocalMaps(const std::set<uint64_t>& localMaps) override;
 	std::vector<uint8_t> imageDescriptors(uint64_t localMap) override;
+	PlaceContext placeContextOf(const Scan& scan, const RasterFrame& raster) const override;
 	~LocalMapManager() override;
 	void saveMap(const std::string& dir, const PoseView& poses, const std::string& placeIndexClass,
 	             const std::vector<uint8_t>& placeIndex) override;
@@ -762,6 +763,20 @@ void LocalMapManager::makePlaceQuery(uint64_t kf, const PoseView& poses, Mapping
 		                                 img);
 		up.placeQueryTurns.push_back(wordsOfImage(img.image.asCvMatRef()));
 	}
+}
+
+PlaceContext LocalMapManager::placeContextOf(const Scan& scan, const RasterFrame& raster) const
+{
+	PlaceContext c;
+	if (!polarContexts_)
+		return c;
+	// The points its image keeps (ground removed), as a keyframe's enter the place query.
+	std::vector<PointXYZI> pts;
+	raster::appendImagePoints(raster, scan.points, pts);
+	c.rings = static_cast<uint16_t>(polar_.rings);
+	c.sectors = static_cast<uint16_t>(polar_.sectors);
+	c.cells = contextCells(pts);
+	return c;
 }
 
 std::vector<uint8_t> LocalMapManager::contextCells(const std::vector<PointXYZI>& pts) const

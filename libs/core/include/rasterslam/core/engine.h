@@ -69,6 +69,8 @@ struct RunResult
 	 *  relocalization hits in earlier sessions it had. */
 	bool localized = false;
 	std::size_t anchorHits = 0;
+	/** The scan (its index in the input) whose keyframe anchored the session. */
+	std::optional<std::size_t> localizedAtScan;
 	std::size_t localMaps = 0;          //!< local maps finished in this run
 	std::size_t localBaRuns = 0;        //!< local maps refined by local BA
 	std::size_t localMapsReplaced = 0;  //!< replaced on a revisit, their place-index entry dropped

@@ -210,6 +210,12 @@ class MapManager : public Plugin
 	{
 		throw std::runtime_error(std::string(GetRuntimeClass()->className) + " cannot merge maps");
 	}
+	/** The polar context of a scan's points made as a place query's is (empty when this
+	 *  manager makes no contexts), for relocalizing the scan. */
+	virtual PlaceContext placeContextOf(const Scan& /*scan*/, const RasterFrame& /*raster*/) const
+	{
+		return {};
+	}
 	/** The ORB descriptors of a local map's image (32 bytes each), for the place index. */
 	virtual std::vector<uint8_t> imageDescriptors(uint64_t /*localMap*/) { return {}; }
 	/** Removes local maps (`map prune`) with their graph edges, and the keyframes no
@@ -293,6 +299,17 @@ class LoopDetector : public Plugin
 	/** Locates a scan in the map with no pose prior. */
 	virtual RelocalizationResult relocalize(const Scan& scan, const RasterFrame& raster,
 	                                        const Map& map, const PoseView& poses) = 0;
+	/** The same with the scan's polar context as the map manager makes it
+	 *  (MapManager::placeContextOf; empty when it makes none), for a detector that ranks the
+	 *  places by it too; what the engine and `rasterslam relocalize` call. By default the
+	 *  context is not used. */
+	virtual RelocalizationResult relocalizeScan(const Scan& scan, const RasterFrame& raster,
+	                                            const PlaceContext& context, const Map& map,
+	                                            const PoseView& poses)
+	{
+		(void)context;
+		return relocalize(scan, raster, map, poses);
+	}
 	/** Locates a local map of another map (its points, in its anchor's frame; only those its
 	 *  keyframe number `onlyKeyframe` saw, when >= 0) with no pose prior; the result's pose
 	 *  is that of its anchor keyframe in `map`'s frame. */
