@@ -263,14 +263,15 @@ TEST(PlaceFusion, ReciprocalRanksAreSummedAndTiesGoToTheBetterSingleRank)
 	EXPECT_EQ(f[2].secondRank, SIZE_MAX);  // 7: not in the second ranking
 	EXPECT_EQ(f[3].firstRank, SIZE_MAX);   // 8: not in the first
 
-	// Equal sums: of a place r-th in one ranking only and another r-th in the other only, the
-	// first ranking's goes first, whatever the ids.
-	const auto t = places::fuseRankings({40, 20}, {30, 10}, 10);
-	ASSERT_EQ(t.size(), 4u);
+	// Equal sums, K 0 (rank r scores 1 / (r + 1)): 30, second in both (1/2 + 1/2), against 40
+	// and 10, first in one ranking only (1): the better single rank first, then the first
+	// ranking's place, whatever the ids.
+	const auto t = places::fuseRankings({40, 30}, {10, 30}, 0);
+	ASSERT_EQ(t.size(), 3u);
+	EXPECT_DOUBLE_EQ(t[0].sum, t[2].sum);
 	EXPECT_EQ(t[0].id, 40u);
-	EXPECT_EQ(t[1].id, 30u);
-	EXPECT_EQ(t[2].id, 20u);
-	EXPECT_EQ(t[3].id, 10u);
+	EXPECT_EQ(t[1].id, 10u);
+	EXPECT_EQ(t[2].id, 30u);
 	EXPECT_TRUE(places::fuseRankings({}, {}, 10).empty());
 }
 

@@ -184,10 +184,10 @@ LocalMap::Ptr featureMap(uint64_t id, bool context)
 
 TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
 {
-	// The true place (local map 1) has an image with no words (so none shared with the query);
-	// three others have the query's own words but other features and no contexts. The words
-	// put the three first; the query's context, that of the true place, puts it first in the
-	// fused ranking. Only the first max_candidates + 1 (here 3) are verified.
+	// Three local maps (2-4) have an image of the query's own words but other features and no
+	// contexts; the true place (local map 1) has the query's features and context, and an
+	// image that shares a few of the query's words or none. Only the first max_candidates + 1
+	// candidates are verified.
 	const auto truth = featureMap(1, true);
 	std::vector<LocalMap::Ptr> lms = {truth};
 	for (uint64_t id = 2; id <= 4; id++)
@@ -209,32 +209,42 @@ TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
 	query.id = 99;
 	query.keyframes = {9900};
 
-	const auto locate = [&](const std::string& params)
+	// A few words: the true place's image holds 30 of the query's 200 descriptors.
+	const std::vector<uint8_t> few(truth->descriptors.begin(),
+	                               truth->descriptors.begin() + 32 * 30);
+	const auto locate = [&](const std::string& params, const std::vector<uint8_t>& truthImage)
 	{
-		auto d = makeDetector(params + "max_candidates: 2\n");
+		auto d = makeDetector(params);
 		for (const auto& lm : lms)
-			d->index(*lm, lm->id == 1 ? std::vector<uint8_t>{} : truth->descriptors);
+			d->index(*lm, lm->id == 1 ? truthImage : truth->descriptors);
 		return d->locate(query, map, poses, 0);
 	};
-	// The words alone verify the three others, which do not match.
-	const auto words = locate("polar_fusion: false\n");
-	EXPECT_FALSE(words.found) << words.reason;
-	// Fused: the true place is verified and found where it is. Its words' score (computed
-	// only now: the words never ranked it) is under min_score, so polar_max_distance decides.
-	const auto fused = locate("polar_fusion: true\npolar_max_distance: 0.05\n");
-	ASSERT_TRUE(fused.found) << fused.reason;
-	EXPECT_EQ(fused.localMap, 1u);
-	EXPECT_GE(fused.inliers, 150u);
-	EXPECT_LT(fused.pose.norm(), 1e-3);
-	// Without polar_max_distance its words' score (0) refuses it before any matching; the
-	// other two verified do not match.
-	const auto scored = locate("polar_fusion: true\n");
-	EXPECT_FALSE(scored.found);
-	EXPECT_EQ(scored.reason, "inliers");
+	// The words rank it fourth: 3 verified (max_candidates 2) miss it, 4 find it.
+	const std::string anyScore = "min_score: 0\n";
+	EXPECT_FALSE(locate(anyScore + "max_candidates: 2\n", few).found);
+	const auto fourth = locate(anyScore + "max_candidates: 3\n", few);
+	ASSERT_TRUE(fourth.found) << fourth.reason;
+	EXPECT_EQ(fourth.localMap, 1u);
+	// Fused (its words fourth, its context first: 1/14 + 1/11 against the others' 1/11 at
+	// most), it is the first candidate: found with two verified (max_candidates 1, the least),
+	// where the words' two miss it.
+	EXPECT_FALSE(locate(anyScore + "max_candidates: 1\n", few).found);
+	const auto first = locate(anyScore + "max_candidates: 1\npolar_fusion: true\n", few);
+	ASSERT_TRUE(first.found) << first.reason;
+	EXPECT_EQ(first.localMap, 1u);
+	EXPECT_GE(first.inliers, 150u);
+	EXPECT_LT(first.pose.norm(), 1e-3);
+
+	// No words at all: only the contexts rank it (second, after the words' first at an equal
+	// sum). Its words' score, computed when it is examined, is 0: min_score refuses it
+	// unless polar_max_distance takes its context instead.
+	const std::string fused = "max_candidates: 1\npolar_fusion: true\n";
+	EXPECT_FALSE(locate(fused, {}).found);
+	const auto close = locate(fused + "polar_max_distance: 0.05\n", {});
+	ASSERT_TRUE(close.found) << close.reason;
+	EXPECT_EQ(close.localMap, 1u);
 	// A query context of other dimensions than the index's is ranked by its words only.
 	query.contextSectors = 30;
 	query.contextCells.resize(10 * 30);
-	const auto other = locate("polar_fusion: true\npolar_max_distance: 0.05\n");
-	EXPECT_FALSE(other.found);
-	EXPECT_NE(other.reason, "score");
+	EXPECT_FALSE(locate(fused + "polar_max_distance: 0.05\n", {}).found);
 }

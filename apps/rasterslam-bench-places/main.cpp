@@ -662,8 +662,8 @@ int run(const Args& a)
 		        .count();
 		ms.push_back(wordsMs);
 		std::vector<uint64_t> wordsRanked;  // --polar: the words' first 50
-		for (const auto& r : res)
-			wordsRanked.push_back(r.entry);
+		for (std::size_t r = 0; r < res.size() && r < 50; r++)
+			wordsRanked.push_back(res[r].entry);
 		if (res.size() > nres)
 			res.resize(nres);
 		const auto placeOf = [&](bow::Database::EntryId e)

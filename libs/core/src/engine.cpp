@@ -706,8 +706,8 @@ void Engine::seekAnchor(RunState& s, const Scan& scan, const RasterFrame& raster
 	// it (it holds this lock for a whole keyframe's work).
 	std::lock_guard<std::mutex> mapLock(s.backend.mapMutex());
 	const Map& map = mapManager_->map();
-	const RelocalizationResult rl = loopDetector_->relocalizeScan(
-	    scan, raster, mapManager_->placeContextOf(scan, raster), map, s.poses);
+	const RelocalizationResult rl =
+	    loopDetector_->relocalizeScan(scan, raster, scanContext(scan, raster), map, s.poses);
 	// Only an earlier session's local map can anchor this one (its own are in its own frame).
 	const bool earlier = rl.found && map.localMaps.at(rl.localMap)->session + 1 < map.sessions;
 	rec.ms.loop += msSince(t0);
@@ -779,6 +779,12 @@ std::optional<LoopConstraint> Engine::anchor(RunState& s)
 	return edge;
 }
 
+PlaceContext Engine::scanContext(const Scan& scan, const RasterFrame& raster) const
+{
+	return loopDetector_->usesScanContexts() ? mapManager_->placeContextOf(scan, raster)
+	                                         : PlaceContext{};
+}
+
 std::optional<LoopConstraint> Engine::relocalizeAfterLoss(RunState& s, const Scan& scan,
                                                           const RasterFrame& raster,
                                                           ScanRecord& rec)
@@ -787,7 +793,7 @@ std::optional<LoopConstraint> Engine::relocalizeAfterLoss(RunState& s, const Sca
 	RelocalizationResult rl;
 	{
 		std::lock_guard<std::mutex> lk(s.backend.mapMutex());
-		rl = loopDetector_->relocalizeScan(scan, raster, mapManager_->placeContextOf(scan, raster),
+		rl = loopDetector_->relocalizeScan(scan, raster, scanContext(scan, raster),
 		                                   mapManager_->map(), s.poses);
 	}
 	rec.ms.loop += msSince(t0);

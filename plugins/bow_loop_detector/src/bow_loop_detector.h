@@ -44,6 +44,7 @@ class BowLoopDetector : public LoopDetector
 	RelocalizationResult relocalizeScan(const Scan& scan, const RasterFrame& raster,
 	                                    const PlaceContext& context, const Map& map,
 	                                    const PoseView& poses) override;
+	bool usesScanContexts() const override { return polarFusion_ && polarRelocalization_; }
 	RelocalizationResult locate(const LocalMap& query, const Map& map, const PoseView& poses,
 	                            int onlyKeyframe) override;
 	bool forget(uint64_t localMap) override;

@@ -301,8 +301,10 @@ class LoopDetector : public Plugin
 	                                        const Map& map, const PoseView& poses) = 0;
 	/** The same with the scan's polar context as the map manager makes it
 	 *  (MapManager::placeContextOf; empty when it makes none), for a detector that ranks the
-	 *  places by it too; what the engine and `rasterslam relocalize` call. By default the
-	 *  context is not used. */
+	 *  places by it too; what the engine and `rasterslam relocalize` call, with the context
+	 *  only when usesScanContexts(). By default the context is not used: a detector that
+	 *  overrides this must not implement relocalize() by calling it back (each would call
+	 *  the other). */
 	virtual RelocalizationResult relocalizeScan(const Scan& scan, const RasterFrame& raster,
 	                                            const PlaceContext& context, const Map& map,
 	                                            const PoseView& poses)
@@ -310,6 +312,9 @@ class LoopDetector : public Plugin
 		(void)context;
 		return relocalize(scan, raster, map, poses);
 	}
+	/** Whether relocalizeScan() ranks by the scan's polar context (the engine makes one only
+	 *  then). */
+	virtual bool usesScanContexts() const { return false; }
 	/** Locates a local map of another map (its points, in its anchor's frame; only those its
 	 *  keyframe number `onlyKeyframe` saw, when >= 0) with no pose prior; the result's pose
 	 *  is that of its anchor keyframe in `map`'s frame. */
