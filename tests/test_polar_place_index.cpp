@@ -1,10 +1,14 @@
 // The loop detector's place index with the local maps' polar contexts (LocalMap::contextCells):
-// what a saved map keeps of them, what leaves with a forgotten local map, and indexes of
-// maps written before them.
+// what a saved map keeps of them, what leaves with a forgotten local map, indexes of maps
+// written before them, and places found by the contexts where the words miss them (a local
+// map of another map, and a real scan with no pose prior).
 #include <gtest/gtest.h>
 #include <rasterslam/core/plugin_loader.h>
+#include <rasterslam/features/orb_extractor.h>
+#include <rasterslam/io/kitti.h>
 #include <rasterslam/map/map.h>
 #include <rasterslam/places/polar_context.h>
+#include <rasterslam/raster/elevation_image.h>
 
 #include <random>
 
@@ -180,18 +184,19 @@ LocalMap::Ptr featureMap(uint64_t id, bool context)
 	}
 	return lm;
 }
-}  // namespace
 
-TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
+/** `truth` then local maps 2-4: featureMap()s with no contexts. */
+std::vector<LocalMap::Ptr> withDistractors(const LocalMap::Ptr& truth)
 {
-	// Three local maps (2-4) have an image of the query's own words but other features and no
-	// contexts; the true place (local map 1) has the query's features and context, and an
-	// image that shares a few of the query's words or none. Only the first max_candidates + 1
-	// candidates are verified.
-	const auto truth = featureMap(1, true);
 	std::vector<LocalMap::Ptr> lms = {truth};
 	for (uint64_t id = 2; id <= 4; id++)
 		lms.push_back(featureMap(id, false));
+	return lms;
+}
+
+/** A map of one session holding `lms`, each with its anchor keyframe at the origin. */
+Map mapOfAnchors(const std::vector<LocalMap::Ptr>& lms)
+{
 	Map map;
 	map.sessions = 1;
 	for (const auto& lm : lms)
@@ -202,6 +207,19 @@ TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
 		map.keyframes[kf->id] = kf;
 		map.priorPoses[kf->id] = mrpt::poses::CPose3D();
 	}
+	return map;
+}
+}  // namespace
+
+TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
+{
+	// Three local maps (2-4) have an image of the query's own words but other features and no
+	// contexts; the true place (local map 1) has the query's features and context, and an
+	// image that shares a few of the query's words or none. Only the first max_candidates + 1
+	// candidates are verified.
+	const auto truth = featureMap(1, true);
+	const auto lms = withDistractors(truth);
+	const Map map = mapOfAnchors(lms);
 	PoseView poses;
 	poses.prior = &map.priorPoses;
 	// The query: the true place's features and context, as another map's local map.
@@ -247,4 +265,97 @@ TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
 	query.contextSectors = 30;
 	query.contextCells.resize(10 * 30);
 	EXPECT_FALSE(locate(fused + "polar_max_distance: 0.05\n", {}).found);
+}
+
+TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
+{
+	// A real scan (KITTI-05 frame 540) relocalized with no prior, with the map manager's
+	// context of it (loop_detector.polar_relocalization): the true place (local map 1) holds
+	// the scan's features and context and an image sharing 30 of its words; three distractors
+	// hold an image of all its words, other features and no contexts. Only the first
+	// max_candidates + 1 candidates are verified.
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	Scan scan;
+	scan.index = 540;
+	scan.points = io::loadKittiBin(test::sharedData("kitti05-revisit-0540-1319/000540.bin"));
+	PluginLoader::instance().load();
+	auto rasterizer =
+	    PluginLoader::instance().create<Rasterizer>("rasterslam::ElevationRasterizer");
+	ASSERT_TRUE(rasterizer);
+	rasterizer->initialize(yaml::Map());
+	RasterFrame raster;
+	rasterizer->rasterize(scan, raster);
+
+	// The features the detector extracts from the scan's image (its query_features, 3,000),
+	// at the points behind them, and the scan's context as LocalMapManager::placeContextOf
+	// makes it: the true place seen from the scan's own pose.
+	features::OrbParams orbParams;
+	orbParams.numFeatures = 3000;
+	features::OrbExtractor orb(orbParams);
+	std::vector<cv::KeyPoint> kps;
+	cv::Mat desc;
+	orb.extract(raster.image.asCvMatRef(), kps, desc);
+	auto truth = std::make_shared<LocalMap>();
+	truth->id = 1;
+	truth->keyframes = {100};
+	for (int i = 0; i < static_cast<int>(kps.size()); i++)
+	{
+		const int32_t idx = raster::pointAtPixel(raster, kps[i].pt.x, kps[i].pt.y, 1);
+		if (idx < 0)
+			continue;
+		const auto& pt = scan.points[static_cast<std::size_t>(idx)];
+		truth->xyz.insert(truth->xyz.end(), {pt.x, pt.y, pt.z});
+		truth->observers.push_back(1);
+		truth->descriptors.insert(truth->descriptors.end(), desc.ptr<uint8_t>(i),
+		                          desc.ptr<uint8_t>(i) + 32);
+	}
+	ASSERT_GE(truth->points(), 300u) << "too few features on the real scan";
+	std::vector<PointXYZI> imagePts;
+	raster::appendImagePoints(raster, scan.points, imagePts);
+	PlaceContext context;
+	context.rings = 10;
+	context.sectors = 60;
+	context.cells =
+	    places::quantizedCells(places::polarContext(imagePts), LocalMap::kContextStep_m);
+	truth->contextRings = context.rings;
+	truth->contextSectors = context.sectors;
+	truth->contextCells = context.cells;
+
+	const auto lms = withDistractors(truth);
+	const Map map = mapOfAnchors(lms);
+	PoseView poses;
+	poses.prior = &map.priorPoses;
+	const std::vector<uint8_t> few(truth->descriptors.begin(),
+	                               truth->descriptors.begin() + 32 * 30);
+	const auto relocalize = [&](const std::string& params, const PlaceContext& c)
+	{
+		auto d = makeDetector("min_score: 0\n" + params);
+		for (const auto& lm : lms)
+			d->index(*lm, lm->id == 1 ? few : truth->descriptors);
+		EXPECT_EQ(d->usesScanContexts(),
+		          params.find("polar_relocalization: true") != std::string::npos);
+		return d->relocalizeScan(scan, raster, c, map, poses);
+	};
+	// The words rank it fourth: with four verified (max_candidates 3) they find it, with two
+	// they miss it, as they do when the detector does not relocalize by the contexts or is
+	// given none.
+	const std::string two = "max_candidates: 1\n", byContext = "polar_relocalization: true\n";
+	const auto fourth = relocalize("max_candidates: 3\n", context);
+	ASSERT_TRUE(fourth.found) << fourth.reason;
+	EXPECT_EQ(fourth.localMap, 1u);
+	EXPECT_FALSE(relocalize(two, context).found);
+	EXPECT_FALSE(relocalize(two + "polar_fusion: true\n", context).found);
+	EXPECT_FALSE(relocalize(two + "polar_fusion: true\n" + byContext, {}).found);
+	// By its context too it comes first: found with two verified, at the scan's own pose.
+	const auto found = relocalize(two + "polar_fusion: true\n" + byContext, context);
+	ASSERT_TRUE(found.found) << found.reason;
+	EXPECT_EQ(found.localMap, 1u);
+	EXPECT_EQ(found.keyframe, 100u);
+	EXPECT_GE(found.inliers, 100u);
+	EXPECT_LT(found.pose.norm(), 0.05);
+	// A context of other dimensions than the index's is not used.
+	PlaceContext other = context;
+	other.sectors = 30;
+	other.cells.resize(10 * 30);
+	EXPECT_FALSE(relocalize(two + "polar_fusion: true\n" + byContext, other).found);
 }

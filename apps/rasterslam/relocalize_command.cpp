@@ -103,13 +103,9 @@ int relocalizeCommand(const RelocalizeArgs& args)
 				break;
 			engine.rasterizer()->rasterize(*scan, raster);
 			// By the map manager's polar context of the scan too, when the loop detector ranks
-			// by it (loop_detector.polar_relocalization).
+			// by it (loop_detector.polar_relocalization), as a session relocalizes.
 			const auto r = engine.loopDetector()->relocalizeScan(
-			    *scan, raster,
-			    engine.loopDetector()->usesScanContexts()
-			        ? engine.mapManager()->placeContextOf(*scan, raster)
-			        : PlaceContext{},
-			    map, poses);
+			    *scan, raster, engine.scanContext(*scan, raster), map, poses);
 			const mrpt::poses::CPose3DQuat q(r.pose);
 			txt += mrpt::format(
 			    "%.6f %s %s %llu %llu %.6f %.6f %zu %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n",

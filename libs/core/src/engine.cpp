@@ -781,8 +781,9 @@ std::optional<LoopConstraint> Engine::anchor(RunState& s)
 
 PlaceContext Engine::scanContext(const Scan& scan, const RasterFrame& raster) const
 {
-	return loopDetector_->usesScanContexts() ? mapManager_->placeContextOf(scan, raster)
-	                                         : PlaceContext{};
+	return loopDetector_ && mapManager_ && loopDetector_->usesScanContexts()
+	           ? mapManager_->placeContextOf(scan, raster)
+	           : PlaceContext{};
 }
 
 std::optional<LoopConstraint> Engine::relocalizeAfterLoss(RunState& s, const Scan& scan,

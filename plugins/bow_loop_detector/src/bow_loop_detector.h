@@ -261,6 +261,8 @@ class BowLoopDetector : public LoopDetector
 	/** Whether polar_fusion can rank with the query context `q`: it is on, the index holds
 	 *  contexts and `q` is one of their dimensions (a throttled warning when it is not). */
 	bool canFuse(const PlaceContext* q);
+	/** The same for contexts of `rings` x `sectors` held as `cellCount` cells. */
+	bool canFuse(uint16_t rings, uint16_t sectors, std::size_t cellCount);
 	/** A context as PlaceContext and LocalMap keep them (cells in kContextStep_m steps). */
 	static places::PolarContext contextOf(uint16_t rings, uint16_t sectors, const uint8_t* cells);
 	/** The words' ranking `words` and the polar contexts' ranking of the query contexts

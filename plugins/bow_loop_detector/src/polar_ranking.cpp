@@ -33,9 +33,8 @@ void BowLoopDetector::indexContexts(const LocalMap& lm)
 	}
 	const std::size_t cells = std::size_t{lm.contextRings} * lm.contextSectors;
 	for (std::size_t k = 0; k < n; k++)
-		polarMap_[polar_->add(places::polarContextOfCells(lm.contextRings, lm.contextSectors,
-		                                                  lm.contextCells.data() + k * cells,
-		                                                  LocalMap::kContextStep_m))] = lm.id;
+		polarMap_[polar_->add(contextOf(lm.contextRings, lm.contextSectors,
+		                                lm.contextCells.data() + k * cells))] = lm.id;
 }
 
 bool BowLoopDetector::forgetContexts(uint64_t localMap)
@@ -55,14 +54,19 @@ bool BowLoopDetector::forgetContexts(uint64_t localMap)
 
 bool BowLoopDetector::canFuse(const PlaceContext* q)
 {
-	if (!polarFusion_ || !polar_ || polar_->size() == 0 || !q || q->empty())
+	return q && !q->empty() && canFuse(q->rings, q->sectors, q->cells.size());
+}
+
+bool BowLoopDetector::canFuse(uint16_t rings, uint16_t sectors, std::size_t cellCount)
+{
+	if (!polarFusion_ || !polar_ || polar_->size() == 0 || cellCount == 0)
 		return false;
-	if (q->rings == polar_->params().rings && q->sectors == polar_->params().sectors &&
-	    q->cells.size() == std::size_t{q->rings} * q->sectors)
+	if (rings == polar_->params().rings && sectors == polar_->params().sectors &&
+	    cellCount == std::size_t{rings} * sectors)
 		return true;
 	MRPT_LOG_THROTTLE_WARN_STREAM(
 	    5.0, "the query's polar context ("
-	             << q->rings << " x " << q->sectors << " cells) is not of the index's "
+	             << rings << " x " << sectors << " cells) is not of the index's "
 	             << polar_->params().rings << " x " << polar_->params().sectors
 	             << ": ranked by its words only");
 	return false;

@@ -95,19 +95,11 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 	// polar_fusion: the query's contexts (about the keyframe, or about each of them) rank the
 	// places too, when it was made with contexts of the index's dimensions.
 	const std::size_t cells = std::size_t{query.contextRings} * query.contextSectors;
-	for (std::size_t k = 0; k < query.contexts(); k++)
-	{
-		if (onlyKeyframe >= 0 && k != static_cast<std::size_t>(onlyKeyframe))
-			continue;
-		PlaceContext c;
-		c.rings = query.contextRings;
-		c.sectors = query.contextSectors;
-		c.cells.assign(query.contextCells.begin() + static_cast<std::ptrdiff_t>(k * cells),
-		               query.contextCells.begin() + static_cast<std::ptrdiff_t>((k + 1) * cells));
-		if (!canFuse(&c))
-			break;
-		q.contexts.push_back(contextOf(c.rings, c.sectors, c.cells.data()));
-	}
+	if (query.contexts() > 0 && canFuse(query.contextRings, query.contextSectors, cells))
+		for (std::size_t k = 0; k < query.contexts(); k++)
+			if (onlyKeyframe < 0 || k == static_cast<std::size_t>(onlyKeyframe))
+				q.contexts.push_back(contextOf(query.contextRings, query.contextSectors,
+				                               query.contextCells.data() + k * cells));
 	return relocalizeQuery(q, static_cast<uint32_t>(query.id * 29 + 7 + onlyKeyframe), map, poses);
 }
 

@@ -155,6 +155,9 @@ class Engine : public mrpt::system::COutputLogger
 	Rasterizer::Ptr rasterizer() const { return rasterizer_; }
 	LoopDetector::Ptr loopDetector() const { return loopDetector_; }
 	MapManager::Ptr mapManager() const { return mapManager_; }
+	/** The map manager's polar context of a scan, when the loop detector relocalizes by it
+	 *  (LoopDetector::usesScanContexts); empty otherwise: what relocalizeScan() is given. */
+	PlaceContext scanContext(const Scan& scan, const RasterFrame& raster) const;
 
 	/** Loads a saved map (--map-in): the map manager reads it, the loop detector restores
 	 *  its place index from it. Needs a map_manager. */
@@ -203,9 +206,6 @@ class Engine : public mrpt::system::COutputLogger
 	OdometryResult track(RunState& s, const Scan& scan, const RasterFrame* raster, ScanRecord& rec);
 	/** A session in a prior map: one more hit towards anchoring it. */
 	void seekAnchor(RunState& s, const Scan& scan, const RasterFrame& raster, ScanRecord& rec);
-	/** The map manager's polar context of a scan, when the loop detector relocalizes by it
-	 *  (LoopDetector::usesScanContexts); empty otherwise. */
-	PlaceContext scanContext(const Scan& scan, const RasterFrame& raster) const;
 	/** Moves the session into the prior map's frame; the relocalization edge that ties it. */
 	std::optional<LoopConstraint> anchor(RunState& s);
 	/** Tracking lost: the scan located in the map with no prior, and the edge when the
