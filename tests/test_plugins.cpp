@@ -1,4 +1,5 @@
 // Plugin loading, creation by class name, and strict configuration.
+#include <dlfcn.h>
 #include <rasterslam/core/config.h>
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/plugin_loader.h>
@@ -76,6 +77,54 @@ TEST(PluginLoader, NamedModuleMissingFromThePathIsAnError)
 	const auto e = errorOf([] { PluginLoader::instance().load({"librasterslam_plugin_nope.so"}); });
 	EXPECT_NE(e.find("librasterslam_plugin_nope.so' not found"), std::string::npos) << e;
 	EXPECT_NE(e.find(RASTERSLAM_BUILD_PLUGIN_DIR), std::string::npos) << e;  // lists the path
+}
+
+TEST(PluginLoader, ModulesOfAnotherPluginAbiAreRefusedNamingWhy)
+{
+	auto& loader = PluginLoader::instance();
+	loader.load();
+	// Every built plugin carries its own mark of this build's ABI.
+	ASSERT_FALSE(loader.loadedModules().empty());
+	for (const auto& m : loader.loadedModules())
+	{
+		void* h = ::dlopen(m.c_str(), RTLD_NOW | RTLD_NOLOAD);
+		ASSERT_TRUE(h) << m;
+		const auto mark = reinterpret_cast<int (*)()>(::dlsym(h, "rasterslam_plugin_abi"));
+		ASSERT_TRUE(mark) << m;
+		Dl_info info{};
+		ASSERT_TRUE(::dladdr(reinterpret_cast<void*>(mark), &info)) << m;
+		EXPECT_EQ(std::string(info.dli_fname), m);  // its own, not its libraries'
+		EXPECT_EQ(mark(), RASTERSLAM_PLUGIN_ABI) << m;
+		::dlclose(h);
+	}
+	// A module built for ABI 0: refused, and so is its class, by name, with the reason;
+	// the built rasterizer is still there.
+	const std::string dir = RASTERSLAM_TEST_MODULE_DIR;
+	const auto old =
+	    errorOf([&] { loader.loadModule(dir + "/librasterslam_test_module_old_abi.so"); });
+	EXPECT_NE(old.find("librasterslam_test_module_old_abi.so' was built for plugin ABI 0 and "
+	                   "this rasterslam has plugin ABI " +
+	                   std::to_string(RASTERSLAM_PLUGIN_ABI)),
+	          std::string::npos)
+	    << old;
+	EXPECT_NE(old.find("rebuild it"), std::string::npos) << old;
+	const auto create =
+	    errorOf([&] { loader.create<Rasterizer>("rasterslam_test::OldAbiRasterizer"); });
+	EXPECT_NE(create.find("rasterizer plugin class 'rasterslam_test::OldAbiRasterizer' cannot "
+	                      "be used: plugin module"),
+	          std::string::npos)
+	    << create;
+	for (const auto& c : loader.registeredClasses())
+		EXPECT_NE(c.className, "rasterslam_test::OldAbiRasterizer");
+	for (const auto& m : loader.loadedModules())
+		EXPECT_EQ(m.find("old_abi"), std::string::npos) << m;
+	EXPECT_TRUE(loader.create<Rasterizer>("rasterslam::ElevationRasterizer"));
+	// A module with no mark of its own (rasterslam's core library it links carries one).
+	const auto unmarked =
+	    errorOf([&] { loader.loadModule(dir + "/librasterslam_test_module_unmarked.so"); });
+	EXPECT_NE(unmarked.find("librasterslam_test_module_unmarked.so' carries no plugin ABI mark"),
+	          std::string::npos)
+	    << unmarked;
 }
 
 TEST(Config, ParamReaderIsStrict)

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -26,12 +27,38 @@ std::string exeDir()
 	return ec ? std::string() : p.parent_path().string();
 }
 
-std::set<std::string> registeredNames()
+/** Every registered class by name (a module may register a name again, replacing it). */
+std::map<std::string, const mrpt::rtti::TRuntimeClassId*> registeredIds()
 {
-	std::set<std::string> s;
+	std::map<std::string, const mrpt::rtti::TRuntimeClassId*> s;
 	for (const auto* c : mrpt::rtti::getAllRegisteredClasses())
-		s.insert(c->className);
+		s[c->className] = c;
 	return s;
+}
+
+/** Why the module loaded as `handle` from `path` cannot be used, or "" when it can: it must
+ *  carry its own ABI mark (rasterslam_plugin_abi(), defined by plugin.h in every module that
+ *  includes it) of this build's RASTERSLAM_PLUGIN_ABI. A plugin built against other headers
+ *  would call the wrong functions of the role classes, and crash or worse. */
+std::string abiProblem(void* handle, const std::string& path)
+{
+	void* sym = handle ? ::dlsym(handle, "rasterslam_plugin_abi") : nullptr;
+	Dl_info info{};
+	std::error_code ec1, ec2;
+	// dlsym searches the module's dependencies too: rasterslam's own libraries carry the mark.
+	if (!sym || !::dladdr(sym, &info) || !info.dli_fname ||
+	    fs::weakly_canonical(info.dli_fname, ec1) != fs::weakly_canonical(path, ec2))
+		return "plugin module '" + path +
+		       "' carries no plugin ABI mark: it was built against the headers of a rasterslam "
+		       "older than ABI marks, or is not a rasterslam plugin; rebuild it against this "
+		       "version's headers (plugin ABI " +
+		       std::to_string(RASTERSLAM_PLUGIN_ABI) + ")";
+	const int abi = reinterpret_cast<int (*)()>(sym)();
+	if (abi != RASTERSLAM_PLUGIN_ABI)
+		return "plugin module '" + path + "' was built for plugin ABI " + std::to_string(abi) +
+		       " and this rasterslam has plugin ABI " + std::to_string(RASTERSLAM_PLUGIN_ABI) +
+		       " (the role classes differ): rebuild it against this version's headers";
+	return "";
 }
 
 const std::vector<std::pair<const mrpt::rtti::TRuntimeClassId*, std::string>>& roles()
@@ -95,7 +122,7 @@ void PluginLoader::loadModule(const std::string& path)
 	for (const auto& l : loaded_)
 		if (fs::path(l).filename() == fs::path(abs).filename())
 			return;  // already loaded
-	const auto before = registeredNames();
+	const auto before = registeredIds();
 	std::string err;
 	if (!mrpt::system::loadPluginModule(abs, err))
 		throw std::runtime_error("cannot load plugin module '" + abs + "': " + err);
@@ -103,12 +130,31 @@ void PluginLoader::loadModule(const std::string& path)
 	// libraries they brought, such as glog under Ceres, with them: objects of theirs still
 	// alive then would point into unmapped code). A second reference with RTLD_NODELETE pins
 	// the module; it is already loaded, so this only marks it.
-	::dlopen(abs.c_str(), RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+	void* handle = ::dlopen(abs.c_str(), RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
 	mrpt::rtti::registerAllPendingClasses();
+	// The classes it registered (new names, or names it registered again over another's).
+	std::vector<std::string> added;
+	for (const auto& [name, id] : registeredIds())
+		if (const auto it = before.find(name); it == before.end() || it->second != id)
+			added.push_back(name);
+	if (const auto problem = abiProblem(handle, abs); !problem.empty())
+	{
+		// Loaded, it cannot be unloaded: its classes are refused by name, and one it
+		// registered over an earlier module's class goes back to that one.
+		for (const auto& name : added)
+		{
+			refused_[name] = problem;
+			if (const auto it = before.find(name); it != before.end())
+				mrpt::rtti::registerClass(it->second);
+		}
+		throw std::runtime_error(problem);
+	}
 	loaded_.push_back(abs);
-	for (const auto& n : registeredNames())
-		if (!before.count(n))
-			classModule_[n] = abs;
+	for (const auto& name : added)
+	{
+		classModule_[name] = abs;
+		refused_.erase(name);
+	}
 }
 
 void PluginLoader::load(const std::vector<std::string>& only)
@@ -189,8 +235,8 @@ std::vector<PluginClassInfo> PluginLoader::registeredClasses() const
 	std::vector<PluginClassInfo> out;
 	for (const auto* c : mrpt::rtti::getAllRegisteredClasses())
 	{
-		if (!c->ptrCreateObject)
-			continue;  // abstract
+		if (!c->ptrCreateObject || refused_.count(c->className))
+			continue;  // abstract, or of a module refused
 		const auto role = roleOfClass(c);
 		if (role.empty())
 			continue;
@@ -219,6 +265,9 @@ Plugin::Ptr PluginLoader::create(const std::string& className,
 	for (const auto& f : failed_)
 		known += "\n(not loaded: " + f + ")";
 
+	if (const auto it = refused_.find(className); it != refused_.end())
+		throw std::runtime_error(roleName + " plugin class '" + className +
+		                         "' cannot be used: " + it->second);
 	const auto* id = mrpt::rtti::findRegisteredClass(className, false);
 	if (!id || !id->ptrCreateObject)
 		throw std::runtime_error("unknown " + roleName + " plugin class '" + className +

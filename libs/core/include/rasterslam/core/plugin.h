@@ -18,6 +18,21 @@
 #include <string>
 #include <vector>
 
+/** The plugin ABI: the role classes below (their virtual functions, in order) and the types
+ *  they pass. Raised with every change of them: PluginLoader refuses a module built for
+ *  another, which would call the wrong functions. 1: the first marked (polar contexts in
+ *  relocalizeScan and placeContextOf, LoopDetector::usesScanContexts). */
+#define RASTERSLAM_PLUGIN_ABI 1
+
+/** The plugin ABI a module was built for. Defined (weak: once a module, however many of its
+ *  files include this header) in every module that includes plugin.h; PluginLoader reads a
+ *  module's own. */
+extern "C" int rasterslam_plugin_abi();
+extern "C" __attribute__((weak, visibility("default"))) int rasterslam_plugin_abi()
+{
+	return RASTERSLAM_PLUGIN_ABI;
+}
+
 namespace rasterslam
 {
 /** Base of every plugin. initialize() reads the parameter block strictly (unknown keys and

@@ -38,7 +38,9 @@ class PluginLoader
 	 *  for a named module that is not found or fails to load. Idempotent. */
 	void load(const std::vector<std::string>& only = {});
 
-	/** Loads one module by absolute path. Throws with the loader's message on failure. */
+	/** Loads one module by absolute path. Throws with the loader's message on failure, and
+	 *  when the module does not carry this build's plugin ABI mark (RASTERSLAM_PLUGIN_ABI):
+	 *  its classes are then refused by create(), naming the reason. */
 	void loadModule(const std::string& path);
 
 	/** Every registered class deriving from a plugin role. */
@@ -64,6 +66,8 @@ class PluginLoader
 	std::vector<std::string> failed_;
 	std::set<std::string> failedSet_;
 	std::map<std::string, std::string> classModule_;  //!< class name -> module
+	/** Classes of modules refused (no or another plugin ABI mark) -> why. */
+	std::map<std::string, std::string> refused_;
 };
 
 /** Role name of a class id ("odometry", ...), or "" if it derives from no role. */
