@@ -99,32 +99,87 @@ TEST(PolarContext, ATurnedSceneMatchesItselfAtTheTurnsShift)
 	EXPECT_GT(other.distance, 0.3);
 }
 
-/** The comparison written the plain way: every shift, each column pair's cosine of the raw
+/** The comparison written the plain way at one shift: each column pair's cosine of the raw
  *  cells, the mean over the sectors occupied in both. */
+double plainAt(const places::PolarContext& a, const places::PolarContext& b, int sh)
+{
+	double sum = 0;
+	int n = 0;
+	for (int s = 0; s < a.sectors; s++)
+	{
+		double dot = 0, na = 0, nb = 0;
+		for (int r = 0; r < a.rings; r++)
+		{
+			const double x = a.at(r, s), y = b.at(r, (s + sh) % a.sectors);
+			dot += x * y, na += x * x, nb += y * y;
+		}
+		if (na > 0 && nb > 0)
+			sum += 1 - dot / std::sqrt(na * nb), n++;
+	}
+	return n ? sum / n : 1.0;
+}
+
+/** The same at every shift: the best. */
 places::PolarMatch bruteForce(const places::PolarContext& a, const places::PolarContext& b)
 {
 	places::PolarMatch best;
 	best.distance = 2;
 	for (int sh = 0; sh < a.sectors; sh++)
 	{
-		double sum = 0;
-		int n = 0;
-		for (int s = 0; s < a.sectors; s++)
-		{
-			double dot = 0, na = 0, nb = 0;
-			for (int r = 0; r < a.rings; r++)
-			{
-				const double x = a.at(r, s), y = b.at(r, (s + sh) % a.sectors);
-				dot += x * y, na += x * x, nb += y * y;
-			}
-			if (na > 0 && nb > 0)
-				sum += 1 - dot / std::sqrt(na * nb), n++;
-		}
-		const double d = n ? sum / n : 1.0;
+		const double d = plainAt(a, b, sh);
 		if (d < best.distance)
 			best = {d, sh};
 	}
 	return best;
+}
+
+TEST(PolarContext, TheShiftsComparedAreTheOnesThePlainSectorKeysRankAtAnyDimensions)
+{
+	// The sector keys' L1 distance at each shift is the plain sum (in bytes over padded
+	// windows when the counts fit a byte, in ints when not: 300 rings; sectors fewer than a
+	// block of 16, a whole block, more), and comparePolar (shiftCandidates 1) compares the
+	// shift where it is least and its two neighbours.
+	for (const auto& [rings, sectors] :
+	     std::vector<std::pair<int, int>>{{10, 60}, {4, 7}, {3, 16}, {6, 33}, {2, 1}, {300, 20}})
+		for (uint32_t seed = 31; seed < 37; seed++)
+		{
+			places::PolarParams p;
+			p.rings = rings;
+			p.sectors = sectors;
+			// Scenes of 6 boxes: many sectors empty, keys that differ from shift to shift.
+			const auto a = places::polarContext(scene(seed, 6), p),
+			           b = places::polarContext(turned(scene(seed + 100, 6), 1.9), p);
+			const std::size_t padded = (static_cast<std::size_t>(sectors) + 15) / 16 * 16;
+			EXPECT_EQ(a.sectorBytes.size(), rings <= 255 ? sectors + padded : 0u) << rings;
+			std::vector<int> plainKeys(static_cast<std::size_t>(sectors));
+			for (int sh = 0; sh < sectors; sh++)
+				for (int s = 0; s < sectors; s++)
+					plainKeys[static_cast<std::size_t>(sh)] +=
+					    std::abs(a.sectorKey[static_cast<std::size_t>(s)] -
+					             b.sectorKey[static_cast<std::size_t>((s + sh) % sectors)]);
+			EXPECT_EQ(places::sectorKeyDistances(a, b), plainKeys)
+			    << rings << " x " << sectors << ", seed " << seed;
+			std::pair<int, int> least{1 << 30, 0};  // (L1, shift)
+			for (int sh = 0; sh < sectors; sh++)
+				least =
+				    std::min(least, std::make_pair(plainKeys[static_cast<std::size_t>(sh)], sh));
+			places::PolarMatch expected;
+			expected.distance = 2;
+			for (const int dsh : {-1, 0, 1})
+			{
+				const int sh = ((least.second + dsh) % sectors + sectors) % sectors;
+				const double d = plainAt(a, b, sh);
+				if (d < expected.distance || (d == expected.distance && sh < expected.shift))
+					expected = {d, sh};
+			}
+			const auto m = places::comparePolar(a, b, 1);
+			EXPECT_EQ(m.shift, expected.shift) << rings << " x " << sectors << ", seed " << seed;
+			EXPECT_NEAR(m.distance, expected.distance, 1e-5)
+			    << rings << " x " << sectors << ", seed " << seed;
+		}
+	const auto small = places::polarContext(scene(1), places::PolarParams{5});
+	EXPECT_THROW(places::sectorKeyDistances(small, places::polarContext(scene(1))),
+	             std::invalid_argument);
 }
 
 TEST(PolarContext, TheComparisonAgreesWithThePlainOneAtEveryShift)

@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -10,6 +11,30 @@ namespace rasterslam::places
 {
 namespace
 {
+/** Sectors rounded up to whole blocks of 16 (the windows of comparePolar's sector keys). */
+int paddedSectors(int S)
+{
+	return (S + 15) / 16 * 16;
+}
+
+/** `n` elements on the stack when they are few (comparePolar runs for each of a query's
+ *  candidates: allocating would cost as much as comparing), on the heap otherwise. */
+template <typename T, std::size_t N>
+class Scratch
+{
+   public:
+	explicit Scratch(std::size_t n) : p_(n <= N ? stack_.data() : (heap_.resize(n), heap_.data()))
+	{
+	}
+	T* data() { return p_; }
+	T& operator[](std::size_t i) { return p_[i]; }
+
+   private:
+	std::array<T, N> stack_;
+	std::vector<T> heap_;
+	T* p_;
+};
+
 /** The keys and unit columns of a context whose cells are set. */
 void finishContext(PolarContext& c)
 {
@@ -23,6 +48,15 @@ void finishContext(PolarContext& c)
 				c.ringKey[static_cast<std::size_t>(r)] += 1.0f / static_cast<float>(S);
 				c.sectorKey[static_cast<std::size_t>(s)]++;
 			}
+	c.sectorBytes.clear();
+	if (R <= 255)
+	{
+		const int n = paddedSectors(S);
+		c.sectorBytes.resize(static_cast<std::size_t>(S + n));
+		for (int i = 0; i < S + n; i++)
+			c.sectorBytes[static_cast<std::size_t>(i)] =
+			    static_cast<uint8_t>(c.sectorKey[static_cast<std::size_t>(i % S)]);
+	}
 	c.columns.assign(c.cells.size(), 0.0f);
 	for (int s = 0; s < S; s++)
 	{
@@ -74,7 +108,9 @@ bool wellFormed(const PolarContext& c)
 	const auto R = static_cast<std::size_t>(std::max(0, c.rings)),
 	           S = static_cast<std::size_t>(std::max(0, c.sectors));
 	return R > 0 && S > 0 && c.cells.size() == R * S && c.columns.size() == R * S &&
-	       c.ringKey.size() == R && c.sectorKey.size() == S;
+	       c.ringKey.size() == R && c.sectorKey.size() == S &&
+	       c.sectorBytes.size() ==
+	           (R <= 255 ? S + static_cast<std::size_t>(paddedSectors(c.sectors)) : 0);
 }
 
 /** Distance of `a` and `b` with b's sectors shifted by `shift`: the sum of the cosines of
@@ -101,43 +137,115 @@ double distanceAt(const PolarContext& a, const PolarContext& b, int shift)
 }
 }  // namespace
 
+namespace
+{
+/** For each shift of b's sectors, the L1 distance of the sector keys of `a` and `b` (the
+ *  occupied rings' counts). In bytes (PolarContext::sectorBytes), over windows of whole
+ *  blocks of 16 so that each block is one sum-of-absolute-differences instruction: a's key
+ *  is padded with zeros, which adds the padded part of b's window (|0 - b| = b), taken off
+ *  again by prefix sums of b's bytes. */
+void keyDistances(const PolarContext& a, const PolarContext& b, int* out)
+{
+	const int S = a.sectors, n = paddedSectors(S);
+	const auto un = static_cast<std::size_t>(n);
+	Scratch<uint8_t, 256> a0(un);
+	std::fill(a0.data(), a0.data() + n, uint8_t{0});
+	std::copy(a.sectorBytes.begin(), a.sectorBytes.begin() + S, a0.data());
+	const uint8_t* b2 = b.sectorBytes.data();
+	Scratch<int, 513> prefix(b.sectorBytes.size() + 1);
+	prefix[0] = 0;
+	for (std::size_t i = 0; i < b.sectorBytes.size(); i++)
+		prefix[i + 1] = prefix[i] + b2[i];
+	for (int sh = 0; sh < S; sh++)
+	{
+		int d = 0;
+		const uint8_t* y = b2 + sh;
+		for (std::size_t s = 0; s < un; s++)
+			d += std::abs(static_cast<int>(a0[s]) - static_cast<int>(y[s]));
+		out[sh] = d - (prefix[static_cast<std::size_t>(sh + n)] -
+		               prefix[static_cast<std::size_t>(sh + S)]);
+	}
+}
+
+/** The same in ints, for keys that do not fit a byte (more than 255 rings). */
+void keyDistancesWide(const PolarContext& a, const PolarContext& b, int* out)
+{
+	const int S = a.sectors;
+	for (int sh = 0; sh < S; sh++)
+	{
+		int d = 0;
+		for (int s = 0; s < S; s++)
+			d += std::abs(a.sectorKey[static_cast<std::size_t>(s)] -
+			              b.sectorKey[static_cast<std::size_t>((s + sh) % S)]);
+		out[sh] = d;
+	}
+}
+
+/** comparePolar() of two well-formed contexts of the same dimensions. */
+PolarMatch compareChecked(const PolarContext& a, const PolarContext& b, int shiftCandidates)
+{
+	const int S = a.sectors;
+	// The shifts whose sector occupancy agrees best, then each with its neighbours.
+	Scratch<int, 256> keyDist(static_cast<std::size_t>(S));
+	if (a.sectorBytes.empty())
+		keyDistancesWide(a, b, keyDist.data());
+	else
+		keyDistances(a, b, keyDist.data());
+	// The best k by (distance, shift), kept sorted.
+	const int k = std::clamp(shiftCandidates, 1, S);
+	Scratch<std::pair<int, int>, 16> best(static_cast<std::size_t>(k));
+	int kept = 0;
+	for (int sh = 0; sh < S; sh++)
+	{
+		const std::pair<int, int> e{keyDist[static_cast<std::size_t>(sh)], sh};
+		if (kept == k && !(e < best[static_cast<std::size_t>(k - 1)]))
+			continue;
+		if (kept < k)
+			kept++;
+		int i = kept - 1;  // insertion: moves the worse ones one down
+		for (; i > 0 && e < best[static_cast<std::size_t>(i - 1)]; i--)
+			best[static_cast<std::size_t>(i)] = best[static_cast<std::size_t>(i - 1)];
+		best[static_cast<std::size_t>(i)] = e;
+	}
+	Scratch<int, 48> tried(static_cast<std::size_t>(3 * k));
+	int triedCount = 0;
+	PolarMatch match;
+	match.distance = 2;
+	for (int i = 0; i < kept; i++)
+		for (int dsh = -1; dsh <= 1; dsh++)
+		{
+			const int sh = ((best[static_cast<std::size_t>(i)].second + dsh) % S + S) % S;
+			if (std::find(tried.data(), tried.data() + triedCount, sh) != tried.data() + triedCount)
+				continue;
+			tried[static_cast<std::size_t>(triedCount++)] = sh;
+			const double dist = distanceAt(a, b, sh);
+			if (dist < match.distance || (dist == match.distance && sh < match.shift))
+				match = {dist, sh};
+		}
+	return match;
+}
+}  // namespace
+
+std::vector<int> sectorKeyDistances(const PolarContext& a, const PolarContext& b)
+{
+	if (!wellFormed(a) || !wellFormed(b) || a.rings != b.rings || a.sectors != b.sectors)
+		throw std::invalid_argument(
+		    "sectorKeyDistances: contexts of different or no dimensions (not made by "
+		    "polarContext?)");
+	std::vector<int> out(static_cast<std::size_t>(a.sectors));
+	if (a.sectorBytes.empty())
+		keyDistancesWide(a, b, out.data());
+	else
+		keyDistances(a, b, out.data());
+	return out;
+}
+
 PolarMatch comparePolar(const PolarContext& a, const PolarContext& b, int shiftCandidates)
 {
 	if (!wellFormed(a) || !wellFormed(b) || a.rings != b.rings || a.sectors != b.sectors)
 		throw std::invalid_argument(
 		    "comparePolar: contexts of different or no dimensions (not made by polarContext?)");
-	const int S = a.sectors;
-	// The shifts whose sector occupancy agrees best (L1 of the occupied rings' counts; integer,
-	// so that the sums vectorize), then each with its neighbours.
-	std::vector<int> bKey2(b.sectorKey);  // twice over: a shifted window needs no modulo
-	bKey2.insert(bKey2.end(), b.sectorKey.begin(), b.sectorKey.end());
-	std::vector<std::pair<int, int>> byKey(static_cast<std::size_t>(S));
-	for (int sh = 0; sh < S; sh++)
-	{
-		int d = 0;
-		const int* x = a.sectorKey.data();
-		const int* y = bKey2.data() + sh;
-		for (int s = 0; s < S; s++)
-			d += std::abs(x[s] - y[s]);
-		byKey[static_cast<std::size_t>(sh)] = {d, sh};
-	}
-	const auto k = static_cast<std::size_t>(std::clamp(shiftCandidates, 1, S));
-	std::partial_sort(byKey.begin(), byKey.begin() + static_cast<std::ptrdiff_t>(k), byKey.end());
-	std::vector<char> tried(static_cast<std::size_t>(S), 0);
-	PolarMatch best;
-	best.distance = 2;
-	for (std::size_t i = 0; i < k; i++)
-		for (int dsh = -1; dsh <= 1; dsh++)
-		{
-			const int sh = ((byKey[i].second + dsh) % S + S) % S;
-			if (tried[static_cast<std::size_t>(sh)])
-				continue;
-			tried[static_cast<std::size_t>(sh)] = 1;
-			const double d = distanceAt(a, b, sh);
-			if (d < best.distance || (d == best.distance && sh < best.shift))
-				best = {d, sh};
-		}
-	return best;
+	return compareChecked(a, b, shiftCandidates);
 }
 
 std::vector<uint8_t> quantizedCells(const PolarContext& c, float step_m)
@@ -172,6 +280,7 @@ std::size_t PolarIndex::add(PolarContext ctx)
 	if (!wellFormed(ctx) || ctx.rings != p_.rings || ctx.sectors != p_.sectors)
 		throw std::invalid_argument(
 		    "PolarIndex::add: a context of other dimensions than the index's");
+	ringKeys_.insert(ringKeys_.end(), ctx.ringKey.begin(), ctx.ringKey.end());
 	places_.push_back(std::move(ctx));
 	live_.push_back(1);
 	++live_count_;
@@ -194,29 +303,60 @@ std::vector<PolarIndex::Result> PolarIndex::query(const PolarContext& q,
 	if (!wellFormed(q) || q.rings != p_.rings || q.sectors != p_.sectors)
 		throw std::invalid_argument(
 		    "PolarIndex::query: a context of other dimensions than the index's");
+	// The ring keys side by side (ringKeys_), not behind each context's own allocation: the
+	// scan over every place is the part of a query that grows with the map.
+	const std::size_t R = q.ringKey.size();
 	std::vector<std::pair<double, std::size_t>> byRing;
-	byRing.reserve(places_.size());
-	for (std::size_t i = 0; i < places_.size(); i++)
+	byRing.reserve(live_count_);
+	const float* key = ringKeys_.data();
+	for (std::size_t i = 0; i < places_.size(); i++, key += R)
 	{
 		if (!live_[i])
 			continue;
 		double d = 0;
-		for (std::size_t r = 0; r < q.ringKey.size(); r++)
+		for (std::size_t r = 0; r < R; r++)
 		{
-			const double e = q.ringKey[r] - places_[i].ringKey[r];
+			const double e = q.ringKey[r] - key[r];
 			d += e * e;
 		}
 		byRing.emplace_back(d, i);
 	}
+	// (distance, id) pairs are all different: the first k are the same set in the same order
+	// whichever selection finds them.
 	const auto k =
 	    std::min(byRing.size(), static_cast<std::size_t>(std::max(1, p_.ringCandidates)));
-	std::partial_sort(byRing.begin(), byRing.begin() + static_cast<std::ptrdiff_t>(k),
-	                  byRing.end());
+	if (k < byRing.size())
+		std::nth_element(byRing.begin(), byRing.begin() + static_cast<std::ptrdiff_t>(k),
+		                 byRing.end());
+	std::sort(byRing.begin(), byRing.begin() + static_cast<std::ptrdiff_t>(k));
 	std::vector<Result> out;
 	out.reserve(k);
+	// The candidates lie anywhere in memory, each behind pointers: each comparison waited for
+	// its context, then for its keys. The context two ahead and the keys of the next one are
+	// fetched while one is compared.
+	const auto prefetch = [](const void* p, std::size_t bytes)
+	{
+#if defined(__GNUC__)
+		for (std::size_t o = 0; o < bytes; o += 64)
+			__builtin_prefetch(static_cast<const char*>(p) + o);
+#else
+		(void)p, (void)bytes;
+#endif
+	};
 	for (std::size_t i = 0; i < k; i++)
+	{
+		if (i + 2 < k)
+			prefetch(&places_[byRing[i + 2].second], sizeof(PolarContext));
+		if (i + 1 < k)
+		{
+			const auto& next = places_[byRing[i + 1].second];
+			prefetch(next.sectorBytes.data(), next.sectorBytes.size());
+			prefetch(next.sectorKey.data(), 4 * 64);
+			prefetch(next.columns.data(), 4 * 64);
+		}
 		out.push_back(
-		    {byRing[i].second, comparePolar(q, places_[byRing[i].second], p_.shiftCandidates)});
+		    {byRing[i].second, compareChecked(q, places_[byRing[i].second], p_.shiftCandidates)});
+	}
 	std::sort(out.begin(), out.end(),
 	          [](const Result& a, const Result& b)
 	          {

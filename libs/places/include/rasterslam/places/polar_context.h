@@ -38,6 +38,10 @@ struct PolarContext
 	std::vector<float> cells;    //!< rings x sectors, row-major by ring; 0: empty
 	std::vector<float> ringKey;  //!< share of each ring's sectors that are occupied
 	std::vector<int> sectorKey;  //!< number of each sector's rings that are occupied
+	/** sectorKey in bytes, twice over, then its first sectors again up to a whole block of 16
+	 *  past the second copy: the sliding windows comparePolar() compares. Empty when a count
+	 *  does not fit a byte (more than 255 rings). */
+	std::vector<uint8_t> sectorBytes;
 	/** Sector-major: each sector's ring column scaled to unit length (all 0 when empty), what
 	 *  comparePolar() takes the cosines of. */
 	std::vector<float> columns;
@@ -69,6 +73,11 @@ struct PolarMatch
 	 *  sector (s + shift) mod sectors. */
 	int shift = 0;
 };
+
+/** For each shift of b's sectors (a's sector s against b's (s + shift) mod sectors), the L1
+ *  distance of the two sector keys: how comparePolar() chooses the shifts it compares in
+ *  full. Both must have the same dimensions. */
+std::vector<int> sectorKeyDistances(const PolarContext& a, const PolarContext& b);
 
 /** The two contexts compared at every sector shift that the sector keys rank among the
  *  best `shiftCandidates` (and their neighbours); both must have the same dimensions. */
@@ -106,6 +115,8 @@ class PolarIndex
 	PolarParams p_;
 	std::vector<PolarContext> places_;
 	std::vector<char> live_;  //!< 0: removed
+	/** Every place's ring key (p_.rings each, in the order of ids; removed ones too). */
+	std::vector<float> ringKeys_;
 	std::size_t live_count_ = 0;
 };
 
