@@ -119,9 +119,21 @@ TEST(PluginLoader, ModulesOfAnotherPluginAbiAreRefusedNamingWhy)
 	for (const auto& m : loader.loadedModules())
 		EXPECT_EQ(m.find("old_abi"), std::string::npos) << m;
 	EXPECT_TRUE(loader.create<Rasterizer>("rasterslam::ElevationRasterizer"));
-	// A module with no mark of its own (rasterslam's core library it links carries one).
-	const auto unmarked =
-	    errorOf([&] { loader.loadModule(dir + "/librasterslam_test_module_unmarked.so"); });
+	// A module with no mark of its own: the mark dlsym finds through it is the core
+	// library's, which the loader must not take for the module's.
+	const auto unmarkedPath = dir + "/librasterslam_test_module_unmarked.so";
+	{
+		void* h = ::dlopen(unmarkedPath.c_str(), RTLD_NOW | RTLD_LOCAL);
+		ASSERT_TRUE(h) << ::dlerror();
+		void* mark = ::dlsym(h, "rasterslam_plugin_abi");
+		ASSERT_TRUE(mark);
+		Dl_info info{};
+		ASSERT_TRUE(::dladdr(mark, &info));
+		EXPECT_NE(std::string(info.dli_fname).find("librasterslam_core.so"), std::string::npos)
+		    << info.dli_fname;
+		::dlclose(h);
+	}
+	const auto unmarked = errorOf([&] { loader.loadModule(unmarkedPath); });
 	EXPECT_NE(unmarked.find("librasterslam_test_module_unmarked.so' carries no plugin ABI mark"),
 	          std::string::npos)
 	    << unmarked;

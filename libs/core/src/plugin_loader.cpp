@@ -142,11 +142,10 @@ void PluginLoader::loadModule(const std::string& path)
 		// Loaded, it cannot be unloaded: its classes are refused by name, and one it
 		// registered over an earlier module's class goes back to that one.
 		for (const auto& name : added)
-		{
-			refused_[name] = problem;
 			if (const auto it = before.find(name); it != before.end())
-				mrpt::rtti::registerClass(it->second);
-		}
+				mrpt::rtti::registerClass(it->second);  // the earlier module's, usable
+			else
+				refused_[name] = problem;
 		throw std::runtime_error(problem);
 	}
 	loaded_.push_back(abs);
@@ -178,13 +177,16 @@ void PluginLoader::load(const std::vector<std::string>& only)
 			std::sort(files.begin(), files.end());  // deterministic load order
 			for (const auto& f : files)
 			{
-				if (!seenNames.insert(f.filename().string()).second)
+				// The first of a name that loads: a stale copy refused earlier in the path
+				// (built for another plugin ABI, say) does not hide a good one after it.
+				if (seenNames.count(f.filename().string()))
 					continue;
 				// One broken module found on the path must not stop every run: it is
 				// reported, and a config naming one of its classes fails with that report.
 				try
 				{
 					loadModule(f.string());
+					seenNames.insert(f.filename().string());
 				}
 				catch (const std::exception& e)
 				{

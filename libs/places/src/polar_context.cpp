@@ -26,6 +26,8 @@ class Scratch
 	explicit Scratch(std::size_t n) : p_(n <= N ? stack_.data() : (heap_.resize(n), heap_.data()))
 	{
 	}
+	Scratch(const Scratch&) = delete;  // p_ may point into the object's own array
+	Scratch& operator=(const Scratch&) = delete;
 	T* data() { return p_; }
 	T& operator[](std::size_t i) { return p_[i]; }
 
@@ -351,8 +353,9 @@ std::vector<PolarIndex::Result> PolarIndex::query(const PolarContext& q,
 		{
 			const auto& next = places_[byRing[i + 1].second];
 			prefetch(next.sectorBytes.data(), next.sectorBytes.size());
-			prefetch(next.sectorKey.data(), 4 * 64);
-			prefetch(next.columns.data(), 4 * 64);
+			prefetch(next.sectorKey.data(),
+			         std::min<std::size_t>(4 * 64, 4 * next.sectorKey.size()));
+			prefetch(next.columns.data(), std::min<std::size_t>(4 * 64, 4 * next.columns.size()));
 		}
 		out.push_back(
 		    {byRing[i].second, compareChecked(q, places_[byRing[i].second], p_.shiftCandidates)});

@@ -23,7 +23,7 @@ struct PluginClassInfo
  *  1. the directories of $RASTERSLAM_PLUGIN_PATH (colon-separated),
  *  2. <dir of the running program>/../lib/rasterslam/plugins (a relocated install),
  *  3. the build tree's plugin folder, 4. the install prefix's plugin folder.
- *  A file name found in several directories is loaded from the first only. Loading every
+ *  A file name found in several directories is loaded from the first where it loads. Loading every
  *  module found, one that fails is reported (failedModules(), stderr) and skipped. Modules are
  *  never unloaded (MRPT's class registry would keep dangling pointers). */
 class PluginLoader

@@ -40,7 +40,8 @@ struct PolarContext
 	std::vector<int> sectorKey;  //!< number of each sector's rings that are occupied
 	/** sectorKey in bytes, twice over, then its first sectors again up to a whole block of 16
 	 *  past the second copy: the sliding windows comparePolar() compares. Empty when a count
-	 *  does not fit a byte (more than 255 rings). */
+	 *  does not fit a byte (more than 255 rings). Made with the keys (polarContext(),
+	 *  polarContextOfCells()): a sectorKey changed by hand would not be seen. */
 	std::vector<uint8_t> sectorBytes;
 	/** Sector-major: each sector's ring column scaled to unit length (all 0 when empty), what
 	 *  comparePolar() takes the cosines of. */
@@ -90,7 +91,8 @@ class PolarIndex
 	explicit PolarIndex(const PolarParams& p = {}) : p_(p) {}
 	/** Adds a place; returns its id (0, 1, ... in the order of insertion; never reused). */
 	std::size_t add(PolarContext ctx);
-	/** Removes a place (its memory is freed); false when there is none of that id. */
+	/** Removes a place (its context's memory is freed; its ring key, 4 bytes a ring, stays
+	 *  among the others); false when there is none of that id. */
 	bool remove(std::size_t id);
 	bool contains(std::size_t id) const { return id < live_.size() && live_[id]; }
 	/** A place's context; null when there is none of that id. */
