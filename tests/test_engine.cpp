@@ -13,6 +13,7 @@
 #ifdef __GLIBC__
 #include <malloc.h>
 #endif
+#include <map>
 #include <random>
 #include <thread>
 
@@ -152,8 +153,59 @@ class CountingLoopDetector : public LoopDetector
    protected:
 	void initializeImpl(ParamReader&) override {}
 };
+
+/** The empty map manager with a scan context that names the scan: 2 rings, 3 sectors, the
+ *  cells the scan's point count and index. */
+class ContextMapManager : public EmptyMapManager
+{
+	DEFINE_MRPT_OBJECT(ContextMapManager, rasterslam::test)
+   public:
+	PlaceContext placeContextOf(const Scan& scan, const RasterFrame&) const override
+	{
+		return contextFor(scan);
+	}
+	static PlaceContext contextFor(const Scan& scan)
+	{
+		PlaceContext c;
+		c.rings = 2;
+		c.sectors = 3;
+		c.cells = {static_cast<uint8_t>(scan.points.size() % 256),
+		           static_cast<uint8_t>(scan.index % 256),
+		           1,
+		           2,
+		           3,
+		           4};
+		return c;
+	}
+};
+
+/** A loop detector that ranks by scan contexts when its params say so (uses_contexts) and
+ *  records the context each relocalization is given, never finding one. */
+class ContextLoopDetector : public CountingLoopDetector
+{
+	DEFINE_MRPT_OBJECT(ContextLoopDetector, rasterslam::test)
+   public:
+	static inline std::vector<std::pair<std::size_t, PlaceContext>> given;
+	bool usesScanContexts() const override { return uses_; }
+	RelocalizationResult relocalizeScan(const Scan& scan, const RasterFrame&,
+	                                    const PlaceContext& context, const Map&,
+	                                    const PoseView&) override
+	{
+		given.emplace_back(scan.index, context);
+		return {};
+	}
+
+   protected:
+	void initializeImpl(ParamReader& p) override { uses_ = p.getBool("uses_contexts", false); }
+
+   private:
+	bool uses_ = false;
+};
 }  // namespace rasterslam::test
 
+IMPLEMENTS_MRPT_OBJECT(ContextMapManager, rasterslam::test::EmptyMapManager, rasterslam::test)
+IMPLEMENTS_MRPT_OBJECT(ContextLoopDetector, rasterslam::test::CountingLoopDetector,
+                       rasterslam::test)
 IMPLEMENTS_MRPT_OBJECT(BlankRasterizer, rasterslam::Rasterizer, rasterslam::test)
 IMPLEMENTS_MRPT_OBJECT(CountingLoopDetector, rasterslam::LoopDetector, rasterslam::test)
 IMPLEMENTS_MRPT_OBJECT(FixedStepOdometry, rasterslam::Odometry, rasterslam::test)
@@ -166,6 +218,8 @@ MRPT_INITIALIZER(register_test_plugins)
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::TwoDecisionsLoopDetector));
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::BlankRasterizer));
 	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::CountingLoopDetector));
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::ContextMapManager));
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam::test::ContextLoopDetector));
 }
 
 namespace
@@ -331,6 +385,62 @@ TEST(Engine, TheMapIsUnlockedWhileDecisionsAreHandedOver)
 	ASSERT_TRUE(heldUntilHandOver) << "keyframe 0's decision was not handed over within 20 s";
 	EXPECT_TRUE(askedDuringHandOver)
 	    << "no relocalization could start while the decisions were handed over";
+}
+
+TEST(Engine, RelocalizationsGetTheMapManagersScanContextOnlyWhenTheDetectorRanksByIt)
+{
+	// A session seeking its place (relocalizeFirstScan) asks at every scan: the detector is
+	// given the map manager's context of that very scan when it says it ranks by contexts
+	// (usesScanContexts), and an empty one otherwise, so that no context is made for nothing.
+	for (const bool uses : {true, false})
+	{
+		SCOPED_TRACE(uses ? "the detector ranks by contexts" : "it does not");
+		const auto cfg = yaml::FromText(
+		    std::string("rasterizer: {class: rasterslam::test::BlankRasterizer}\n"
+		                "odometry: {class: rasterslam::test::FixedStepOdometry}\n"
+		                "map_manager: {class: rasterslam::test::ContextMapManager}\n"
+		                "loop_detector: {class: rasterslam::test::ContextLoopDetector, params: "
+		                "{uses_contexts: ") +
+		    (uses ? "true" : "false") + "}}\n");
+		auto& given = test::ContextLoopDetector::given;
+		given.clear();
+		RunOptions o;
+		o.relocalizeFirstScan = true;  // never found: it keeps asking
+		Engine e(cfg, "t.yaml");
+		auto scans = makeScans(6, false, CPose3D());
+		for (auto& s : scans)  // scans told apart by their point count too
+			s.points.resize(s.points.size() - static_cast<std::size_t>(3 * s.index));
+		std::map<std::size_t, Scan> byIndex;
+		for (const auto& s : scans)
+			byIndex.emplace(s.index, s);
+		VectorSource src(scans);
+		e.run(src, o);
+		ASSERT_GE(given.size(), 2u);
+		for (const auto& [index, context] : given)
+		{
+			ASSERT_EQ(byIndex.count(index), 1u) << "scan " << index;
+			const auto expected = test::ContextMapManager::contextFor(byIndex.at(index));
+			if (!uses)
+			{
+				EXPECT_TRUE(context.empty()) << "scan " << index;
+				continue;
+			}
+			EXPECT_EQ(context.rings, expected.rings);
+			EXPECT_EQ(context.sectors, expected.sectors);
+			EXPECT_EQ(context.cells, expected.cells) << "scan " << index;
+		}
+		// What rasterslam relocalize asks the engine for: the same rule.
+		const Scan& first = byIndex.at(0);
+		EXPECT_EQ(e.scanContext(first, RasterFrame{}).cells,
+		          uses ? test::ContextMapManager::contextFor(first).cells : std::vector<uint8_t>{});
+	}
+	// With no loop detector there is nothing to rank by: no context.
+	Engine bare(yaml::FromText("rasterizer: {class: rasterslam::test::BlankRasterizer}\n"
+	                           "odometry: {class: rasterslam::test::FixedStepOdometry}\n"
+	                           "map_manager: {class: rasterslam::test::ContextMapManager}\n"),
+	            "t.yaml");
+	ASSERT_FALSE(bare.loopDetector());
+	EXPECT_TRUE(bare.scanContext(makeScans(1, false, CPose3D()).front(), RasterFrame{}).empty());
 }
 
 TEST(Engine, KeyframesAndAPoseForEveryScan)

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
+#include <string>
 
 namespace rasterslam::places
 {
@@ -183,16 +184,32 @@ void keyDistancesWide(const PolarContext& a, const PolarContext& b, int* out)
 	}
 }
 
+/** The sector keys' distance at each shift (out: a.sectors values), in bytes where the
+ *  contexts have them. */
+void keyDistancesOf(const PolarContext& a, const PolarContext& b, int* out)
+{
+	if (a.sectorBytes.empty())
+		keyDistancesWide(a, b, out);
+	else
+		keyDistances(a, b, out);
+}
+
+/** Throws naming `caller` unless both contexts are well formed and of the same dimensions. */
+void requireComparable(const PolarContext& a, const PolarContext& b, const char* caller)
+{
+	if (!wellFormed(a) || !wellFormed(b) || a.rings != b.rings || a.sectors != b.sectors)
+		throw std::invalid_argument(
+		    std::string(caller) +
+		    ": contexts of different or no dimensions (not made by polarContext?)");
+}
+
 /** comparePolar() of two well-formed contexts of the same dimensions. */
 PolarMatch compareChecked(const PolarContext& a, const PolarContext& b, int shiftCandidates)
 {
 	const int S = a.sectors;
 	// The shifts whose sector occupancy agrees best, then each with its neighbours.
 	Scratch<int, 256> keyDist(static_cast<std::size_t>(S));
-	if (a.sectorBytes.empty())
-		keyDistancesWide(a, b, keyDist.data());
-	else
-		keyDistances(a, b, keyDist.data());
+	keyDistancesOf(a, b, keyDist.data());
 	// The best k by (distance, shift), kept sorted.
 	const int k = std::clamp(shiftCandidates, 1, S);
 	Scratch<std::pair<int, int>, 16> best(static_cast<std::size_t>(k));
@@ -230,23 +247,15 @@ PolarMatch compareChecked(const PolarContext& a, const PolarContext& b, int shif
 
 std::vector<int> sectorKeyDistances(const PolarContext& a, const PolarContext& b)
 {
-	if (!wellFormed(a) || !wellFormed(b) || a.rings != b.rings || a.sectors != b.sectors)
-		throw std::invalid_argument(
-		    "sectorKeyDistances: contexts of different or no dimensions (not made by "
-		    "polarContext?)");
+	requireComparable(a, b, "sectorKeyDistances");
 	std::vector<int> out(static_cast<std::size_t>(a.sectors));
-	if (a.sectorBytes.empty())
-		keyDistancesWide(a, b, out.data());
-	else
-		keyDistances(a, b, out.data());
+	keyDistancesOf(a, b, out.data());
 	return out;
 }
 
 PolarMatch comparePolar(const PolarContext& a, const PolarContext& b, int shiftCandidates)
 {
-	if (!wellFormed(a) || !wellFormed(b) || a.rings != b.rings || a.sectors != b.sectors)
-		throw std::invalid_argument(
-		    "comparePolar: contexts of different or no dimensions (not made by polarContext?)");
+	requireComparable(a, b, "comparePolar");
 	return compareChecked(a, b, shiftCandidates);
 }
 
