@@ -7,12 +7,15 @@
 #include <mrpt/serialization/CArchive.h>
 #include <rasterslam/bow/vocabulary.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -339,6 +342,108 @@ TEST(Bow, DatabaseAddRemoveQuery)
 	// No word in common, nothing found.
 	EXPECT_TRUE(db.query(BowVector{{999999, 1.0}}, 10).empty());
 	EXPECT_TRUE(db.query(bows[0], 0).empty());
+}
+
+// The query against every entry scored one by one (Vocabulary::score), on bags of random
+// words and weights: while ids are dense (scores in an array) and after most entries are
+// removed (ids much sparser than the entries: scores in a hash map). Each query's results are
+// the best by (score, id) of every entry sharing a word, with its score.
+TEST(Bow, DatabaseQueryIsEveryEntryScoredOneByOneDenseOrSparse)
+{
+	std::mt19937 rng(17);
+	std::uniform_int_distribution<WordId> word(0, 2999);
+	std::uniform_real_distribution<double> weight(0.01, 1.0);
+	const auto bag = [&](int words)
+	{
+		BowVector v;
+		while (static_cast<int>(v.size()) < words)
+			v[word(rng)] = weight(rng);
+		double sum = 0;
+		for (const auto& [w, x] : v)
+			sum += x;
+		for (auto& [w, x] : v)
+			x /= sum;
+		return v;
+	};
+	Database db;
+	std::map<Database::EntryId, BowVector> live;
+	const auto expectPlainScores = [&](const char* phase)
+	{
+		SCOPED_TRACE(phase);
+		for (int q = 0; q < 20; ++q)
+		{
+			const BowVector query = bag(150);
+			std::vector<Database::Result> plain;
+			for (const auto& [id, v] : live)
+			{
+				bool common = false;
+				for (const auto& [w, x] : query)
+					common = common || v.count(w) != 0;
+				if (common)
+					plain.push_back({id, Vocabulary::score(query, v)});
+			}
+			std::sort(plain.begin(), plain.end(),
+			          [](const auto& a, const auto& b)
+			          { return a.score != b.score ? a.score > b.score : a.entry < b.entry; });
+			ASSERT_GT(plain.size(), 10u);
+			for (const std::size_t k : {std::size_t{10}, plain.size() + 5})
+			{
+				// Scores summed in another order may differ in the last bits, and then break
+				// a tie the other way: each result is checked against its own entry's score
+				// and the ranks' scores against the plain ranking's.
+				const auto r = db.query(query, k);
+				ASSERT_EQ(r.size(), std::min(k, plain.size()));
+				std::set<Database::EntryId> returned;
+				for (std::size_t i = 0; i < r.size(); ++i)
+				{
+					ASSERT_EQ(live.count(r[i].entry), 1u) << "rank " << i;
+					EXPECT_TRUE(returned.insert(r[i].entry).second) << "rank " << i;
+					EXPECT_NEAR(r[i].score, Vocabulary::score(query, live.at(r[i].entry)), 1e-12)
+					    << "rank " << i;
+					EXPECT_NEAR(r[i].score, plain[i].score, 1e-12) << "rank " << i;
+					if (i > 0)
+						EXPECT_TRUE(r[i - 1].score > r[i].score ||
+						            (r[i - 1].score == r[i].score && r[i - 1].entry < r[i].entry))
+						    << "rank " << i;
+				}
+				// Nothing left out scores above the last one returned.
+				for (const auto& p : plain)
+					if (!returned.count(p.entry))
+						EXPECT_LE(p.score, r.back().score + 1e-12) << "entry " << p.entry;
+			}
+		}
+	};
+	for (int i = 0; i < 5000; ++i)
+	{
+		auto v = bag(i < 300 ? 150 : 5);
+		live.emplace(db.add(v), std::move(v));
+	}
+	expectPlainScores("dense ids");
+	// Keep one entry in 50: 100 live entries among 5,000 ids.
+	for (auto it = live.begin(); it != live.end();)
+		if (it->first % 50 != 7)
+		{
+			EXPECT_TRUE(db.remove(it->first));
+			it = live.erase(it);
+		}
+		else
+			++it;
+	ASSERT_EQ(db.size(), 100u);
+	expectPlainScores("sparse ids");
+	// The word table has a bound: a word beyond it is refused with its id, nothing added.
+	EXPECT_NO_THROW(db.add(BowVector{{65535, 1.0}}));
+	try
+	{
+		db.add(BowVector{{1, 0.5}, {Database::kMaxWords, 0.5}});
+		ADD_FAILURE() << "a word id of kMaxWords was taken";
+	}
+	catch (const std::invalid_argument& e)
+	{
+		EXPECT_NE(std::string(e.what()).find(std::to_string(Database::kMaxWords)),
+		          std::string::npos)
+		    << e.what();
+	}
+	EXPECT_EQ(db.size(), 101u);
 }
 
 TEST(Bow, QueryViewsKeepEachEntrysBestOnTheFirstViewsScale)

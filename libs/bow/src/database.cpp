@@ -15,11 +15,20 @@ using namespace rasterslam::bow;
 
 Database::EntryId Database::add(const BowVector& bow, const FeatureVector& fv)
 {
+	if (!bow.empty() && bow.rbegin()->first >= kMaxWords)
+		throw std::invalid_argument(
+		    "bow::Database::add: word id " + std::to_string(bow.rbegin()->first) +
+		    " is beyond the largest a database takes (" + std::to_string(kMaxWords - 1) + ")");
 	const EntryId id = next_++;
 	entries_[id] = Entry{{bow.begin(), bow.end()}, fv};
-	// Ids only grow, so every inverted list stays sorted by entry: remove() can bisect.
+	if (!bow.empty() && inverted_.size() <= bow.rbegin()->first)
+		inverted_.resize(static_cast<std::size_t>(bow.rbegin()->first) + 1);
+	// Ids only grow, so every word's postings stay sorted by entry: remove() can bisect.
 	for (const auto& [w, v] : bow)
-		inverted_[w].emplace_back(id, v);
+	{
+		inverted_[w].entries.push_back(id);
+		inverted_[w].weights.push_back(v);
+	}
 	return id;
 }
 
@@ -30,16 +39,14 @@ bool Database::remove(EntryId e)
 		return false;
 	for (const auto& [w, v] : it->second.bow)
 	{
-		const auto list = inverted_.find(w);
-		if (list == inverted_.end())
-			continue;
-		auto& l = list->second;
-		const auto at = std::lower_bound(l.begin(), l.end(), e,
-		                                 [](const auto& p, EntryId id) { return p.first < id; });
-		if (at != l.end() && at->first == e)
-			l.erase(at);
-		if (l.empty())
-			inverted_.erase(list);
+		auto& l = inverted_[w];
+		const auto at = std::lower_bound(l.entries.begin(), l.entries.end(), e);
+		if (at != l.entries.end() && *at == e)
+		{
+			const auto i = at - l.entries.begin();
+			l.entries.erase(at);
+			l.weights.erase(l.weights.begin() + i);
+		}
 	}
 	entries_.erase(it);
 	return true;
@@ -55,49 +62,46 @@ std::vector<Database::Result> Database::query(const BowVector& bow, std::size_t 
 	// gather in a dense array by entry id while ids are not much sparser than the live entries
 	// (hashing every posting would cost several times the whole scoring); otherwise in a hash map.
 	const bool dense = next_ <= 4 * entries_.size() + 4096;
-	std::vector<double> acc;
-	std::vector<uint8_t> seen;
-	std::unordered_map<EntryId, double> sparse;
-	std::vector<EntryId> touched;
 	if (dense)
 	{
-		acc.assign(next_, 0.0);
-		seen.assign(next_, 0);
+		// -1 marks an entry no query word has reached: max(acc, 0) + m starts it at m and
+		// adds to it after (m >= 0), with no branch in the hot loop.
+		std::vector<double> acc(next_, -1.0);
+		for (const auto& [w, qv] : bow)
+		{
+			if (w >= inverted_.size())
+				break;  // the words are in increasing order
+			const Postings& l = inverted_[w];
+			const double a = std::abs(qv);
+			const EntryId* ids = l.entries.data();
+			const double* weights = l.weights.data();
+			const std::size_t n = l.entries.size();
+			for (std::size_t i = 0; i < n; i++)
+			{
+				double& s = acc[ids[i]];
+				s = std::max(s, 0.0) + std::min(a, std::abs(weights[i]));
+			}
+		}
+		for (EntryId e = 0; e < next_; e++)
+			if (acc[e] >= 0)
+				out.push_back({e, std::min(acc[e], 1.0)});
 	}
 	else
+	{
+		std::unordered_map<EntryId, double> sparse;
 		sparse.reserve(entries_.size());
-	for (const auto& [w, qv] : bow)
-	{
-		const auto list = inverted_.find(w);
-		if (list == inverted_.end())
-			continue;
-		const double a = std::abs(qv);
-		if (dense)  // the hot loop: kept free of the hash map
+		for (const auto& [w, qv] : bow)
 		{
-			for (const auto& [e, v] : list->second)
-			{
-				if (!seen[e])
-				{
-					seen[e] = 1;
-					touched.push_back(e);
-				}
-				acc[e] += std::min(a, std::abs(v));
-			}
-			continue;
+			if (w >= inverted_.size())
+				break;
+			const Postings& l = inverted_[w];
+			const double a = std::abs(qv);
+			for (std::size_t i = 0; i < l.entries.size(); i++)
+				sparse[l.entries[i]] += std::min(a, std::abs(l.weights[i]));
 		}
-		for (const auto& [e, v] : list->second)
-		{
-			auto [it, inserted] = sparse.try_emplace(e, 0.0);
-			if (inserted)
-				touched.push_back(e);
-			it->second += std::min(a, std::abs(v));
-		}
-	}
-	out.reserve(touched.size());
-	for (const EntryId e : touched)
-	{
-		const double s = dense ? acc[e] : sparse[e];
-		out.push_back({e, std::clamp(s, 0.0, 1.0)});
+		out.reserve(sparse.size());
+		for (const auto& [e, s] : sparse)
+			out.push_back({e, std::clamp(s, 0.0, 1.0)});
 	}
 	const auto better = [](const Result& x, const Result& y)
 	{ return x.score != y.score ? x.score > y.score : x.entry < y.entry; };
@@ -217,6 +221,9 @@ void Database::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 					in >> w >> v;
 					if ((j > 0 && w <= last) || !std::isfinite(v))
 						bad("bag of words not sorted or weight not finite");
+					if (w >= kMaxWords)
+						bad("word id " + std::to_string(w) +
+						    " beyond the largest a database takes");
 					last = w;
 					e.bow.emplace_back(w, v);
 				}
@@ -251,5 +258,10 @@ void Database::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
 	inverted_.clear();
 	for (const auto& [id, e] : entries_)
 		for (const auto& [w, v] : e.bow)
-			inverted_[w].emplace_back(id, v);
+		{
+			if (inverted_.size() <= w)
+				inverted_.resize(static_cast<std::size_t>(w) + 1);
+			inverted_[w].entries.push_back(id);
+			inverted_[w].weights.push_back(v);
+		}
 }

@@ -106,6 +106,12 @@ class Database : public mrpt::serialization::CSerializable
 	Database() = default;
 	explicit Database(int directIndexLevelsUp) : levelsUp_(directIndexLevelsUp) {}
 
+	/** Word ids this database takes: below 2^22 (a vocabulary of 10 branches and 6 levels
+	 *  has 10^6 words). The index is a table by word id, 48 bytes a word up to the largest
+	 *  id added. */
+	static constexpr WordId kMaxWords = WordId{1} << 22;
+
+	/** Adds an entry; throws std::invalid_argument for a word id of kMaxWords or more. */
 	EntryId add(const BowVector& bow, const FeatureVector& fv = {});
 	/** Removes an entry from the inverted index (e.g. a local map moved offline). Returns
 	 *  false if it was not there. */
@@ -143,10 +149,19 @@ class Database : public mrpt::serialization::CSerializable
 		std::vector<std::pair<WordId, double>> bow;
 		FeatureVector fv;
 	};
+	/** One word's postings: the entries that hold it (increasing ids) and their weights, in
+	 *  two arrays so that a query reads 12 bytes a posting instead of a padded pair's 16. */
+	struct Postings
+	{
+		std::vector<EntryId> entries;
+		std::vector<double> weights;
+	};
 	int levelsUp_ = 2;
 	EntryId next_ = 0;
 	std::map<EntryId, Entry> entries_;
-	std::map<WordId, std::vector<std::pair<EntryId, double>>> inverted_;
+	/** By word id: a vocabulary numbers its words from 0, so a table indexed by the word
+	 *  replaces a tree search per query word. */
+	std::vector<Postings> inverted_;
 };
 
 /** Converts OpenCV-style rows (N x 32 bytes, row-major) to descriptors. */

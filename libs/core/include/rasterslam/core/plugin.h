@@ -21,8 +21,9 @@
 /** The plugin ABI: the role classes below (their virtual functions, in order) and the types
  *  they pass. Raised with every change of them: PluginLoader refuses a module built for
  *  another, which would call the wrong functions. 1: the first marked (polar contexts in
- *  relocalizeScan and placeContextOf, LoopDetector::usesScanContexts). */
-#define RASTERSLAM_PLUGIN_ABI 1
+ *  relocalizeScan and placeContextOf, LoopDetector::usesScanContexts). 2: bow::Database's
+ *  inverted index a table by word (its size changed). */
+#define RASTERSLAM_PLUGIN_ABI 2
 
 /** The plugin ABI a module was built for. Defined (weak: once a module, however many of its
  *  files include this header) in every module that includes plugin.h; PluginLoader reads a
