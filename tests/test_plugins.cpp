@@ -1,5 +1,6 @@
 // Plugin loading, creation by class name, and strict configuration.
 #include <dlfcn.h>
+#include <mrpt/core/initializer.h>
 #include <rasterslam/core/config.h>
 #include <rasterslam/core/engine.h>
 #include <rasterslam/core/plugin_loader.h>
@@ -8,6 +9,27 @@
 
 using namespace rasterslam;
 using mrpt::containers::yaml;
+
+namespace rasterslam_test
+{
+/** A class of the test program whose name the module of another plugin ABI registers too. */
+class ShadowedRasterizer : public Rasterizer
+{
+	DEFINE_MRPT_OBJECT(ShadowedRasterizer, rasterslam_test)
+
+   public:
+	void rasterize(const Scan&, RasterFrame&) override {}
+
+   protected:
+	void initializeImpl(ParamReader&) override {}
+};
+}  // namespace rasterslam_test
+
+IMPLEMENTS_MRPT_OBJECT(ShadowedRasterizer, rasterslam::Rasterizer, rasterslam_test)
+MRPT_INITIALIZER(register_test_plugins_shadowed)
+{
+	mrpt::rtti::registerClass(CLASS_ID(rasterslam_test::ShadowedRasterizer));
+}
 
 namespace
 {
@@ -119,6 +141,13 @@ TEST(PluginLoader, ModulesOfAnotherPluginAbiAreRefusedNamingWhy)
 	for (const auto& m : loader.loadedModules())
 		EXPECT_EQ(m.find("old_abi"), std::string::npos) << m;
 	EXPECT_TRUE(loader.create<Rasterizer>("rasterslam::ElevationRasterizer"));
+	// It also registered a class under the name of one of this program's: the name is
+	// given back to this program's class, which stays usable.
+	EXPECT_EQ(mrpt::rtti::findRegisteredClass("rasterslam_test::ShadowedRasterizer"),
+	          CLASS_ID(rasterslam_test::ShadowedRasterizer));
+	const auto shadowed = loader.create<Rasterizer>("rasterslam_test::ShadowedRasterizer");
+	ASSERT_TRUE(shadowed);
+	EXPECT_TRUE(std::dynamic_pointer_cast<rasterslam_test::ShadowedRasterizer>(shadowed));
 	// A module with no mark of its own: the mark dlsym finds through it is the core
 	// library's, which the loader must not take for the module's.
 	const auto unmarkedPath = dir + "/librasterslam_test_module_unmarked.so";
