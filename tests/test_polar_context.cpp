@@ -204,6 +204,25 @@ TEST(PolarContext, TheComparisonAgreesWithThePlainOneAtEveryShift)
 	}
 	// Nothing in common: the distance is 1.
 	EXPECT_EQ(places::comparePolar(a, places::polarContext({})).distance, 1.0);
+	// Other sector counts: the sectors occupied in both are counted on 64-bit occupancy
+	// masks up to 64 sectors (turned across the wrap: 1, 7, 63, 64), on the keys beyond.
+	for (const int sectors : {1, 7, 63, 64, 65, 90})
+	{
+		places::PolarParams p;
+		p.sectors = sectors;
+		const auto c = places::polarContext(scene(11), p);
+		for (const uint32_t seed : {11u, 12u, 13u})
+			for (const double deg : {0.0, 100.0, 359.0})
+			{
+				const auto d = places::polarContext(
+				    turned(scene(seed, seed == 11 ? 40 : 6), deg * M_PI / 180), p);
+				const auto fast = places::comparePolar(c, d, sectors), plain = bruteForce(c, d);
+				EXPECT_EQ(fast.shift, plain.shift)
+				    << sectors << " sectors, scene " << seed << ", " << deg << " deg";
+				EXPECT_NEAR(fast.distance, plain.distance, 1e-5)
+				    << sectors << " sectors, scene " << seed << ", " << deg << " deg";
+			}
+	}
 }
 
 TEST(PolarContext, TheIndexRanksATurnedPlaceFirstAmongMany)

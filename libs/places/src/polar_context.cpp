@@ -116,26 +116,49 @@ bool wellFormed(const PolarContext& c)
 	           (R <= 255 ? S + static_cast<std::size_t>(paddedSectors(c.sectors)) : 0);
 }
 
+/** The sectors a context occupies as bits (sector s: bit s), for up to 64 sectors. */
+uint64_t occupancyBits(const PolarContext& c)
+{
+	uint64_t bits = 0;
+	for (int s = 0; s < c.sectors; s++)
+		bits |= static_cast<uint64_t>(c.sectorKey[static_cast<std::size_t>(s)] > 0) << s;
+	return bits;
+}
+
 /** Distance of `a` and `b` with b's sectors shifted by `shift`: the sum of the cosines of
  *  the columns occupied in both is the dot product of the unit columns (an empty column is
- *  all zeros), taken in two contiguous pieces (before and after b's sectors wrap). */
-double distanceAt(const PolarContext& a, const PolarContext& b, int shift)
+ *  all zeros), taken in two contiguous pieces (before and after b's sectors wrap). With up
+ *  to 64 sectors the sectors occupied in both are counted on the occupancy bits (`bitsA`,
+ *  `bitsB`), otherwise on the sector keys. */
+double distanceAt(const PolarContext& a, const PolarContext& b, int shift, uint64_t bitsA,
+                  uint64_t bitsB)
 {
 	using Vec = Eigen::Map<const Eigen::VectorXf>;
 	const Eigen::Index S = a.sectors, R = a.rings, sh = shift, head = S - sh;
 	const float dot =
 	    Vec(a.columns.data(), head * R).dot(Vec(b.columns.data() + sh * R, head * R)) +
 	    Vec(a.columns.data() + head * R, sh * R).dot(Vec(b.columns.data(), sh * R));
-	// Sectors occupied in both: the occupancy flags' dot product.
-	const auto both = [](const int* x, const int* y, Eigen::Index n)
+	int n = 0;
+	if (S <= 64)
 	{
-		int c = 0;
-		for (Eigen::Index i = 0; i < n; i++)
-			c += (x[i] > 0) & (y[i] > 0);
-		return c;
-	};
-	const int n = both(a.sectorKey.data(), b.sectorKey.data() + sh, head) +
-	              both(a.sectorKey.data() + head, b.sectorKey.data(), sh);
+		// Sector s of a meets sector (s + sh) mod S of b: b's bits turned right by sh.
+		const uint64_t turned =
+		    sh == 0 ? bitsB : (bitsB >> sh) | (bitsB << static_cast<unsigned>(S - sh));
+		const uint64_t mask = S == 64 ? ~uint64_t{0} : (uint64_t{1} << S) - 1;
+		n = __builtin_popcountll(bitsA & turned & mask);
+	}
+	else
+	{
+		const auto both = [](const int* x, const int* y, Eigen::Index count)
+		{
+			int c = 0;
+			for (Eigen::Index i = 0; i < count; i++)
+				c += (x[i] > 0) & (y[i] > 0);
+			return c;
+		};
+		n = both(a.sectorKey.data(), b.sectorKey.data() + sh, head) +
+		    both(a.sectorKey.data() + head, b.sectorKey.data(), sh);
+	}
 	return n ? std::max(0.0, 1.0 - static_cast<double>(dot) / n) : 1.0;
 }
 }  // namespace
@@ -226,6 +249,7 @@ PolarMatch compareChecked(const PolarContext& a, const PolarContext& b, int shif
 			best[static_cast<std::size_t>(i)] = best[static_cast<std::size_t>(i - 1)];
 		best[static_cast<std::size_t>(i)] = e;
 	}
+	const uint64_t bitsA = S <= 64 ? occupancyBits(a) : 0, bitsB = S <= 64 ? occupancyBits(b) : 0;
 	Scratch<int, 48> tried(static_cast<std::size_t>(3 * k));
 	int triedCount = 0;
 	PolarMatch match;
@@ -237,7 +261,7 @@ PolarMatch compareChecked(const PolarContext& a, const PolarContext& b, int shif
 			if (std::find(tried.data(), tried.data() + triedCount, sh) != tried.data() + triedCount)
 				continue;
 			tried[static_cast<std::size_t>(triedCount++)] = sh;
-			const double dist = distanceAt(a, b, sh);
+			const double dist = distanceAt(a, b, sh, bitsA, bitsB);
 			if (dist < match.distance || (dist == match.distance && sh < match.shift))
 				match = {dist, sh};
 		}
