@@ -226,8 +226,11 @@ void requireComparable(const PolarContext& a, const PolarContext& b, const char*
 		    ": contexts of different or no dimensions (not made by polarContext?)");
 }
 
-/** comparePolar() of two well-formed contexts of the same dimensions. */
-PolarMatch compareChecked(const PolarContext& a, const PolarContext& b, int shiftCandidates)
+/** comparePolar() of two well-formed contexts of the same dimensions; `bitsA` is
+ *  occupancyBits(a) when a has up to 64 sectors (a query compared with many contexts
+ *  computes it once). */
+PolarMatch compareChecked(const PolarContext& a, uint64_t bitsA, const PolarContext& b,
+                          int shiftCandidates)
 {
 	const int S = a.sectors;
 	// The shifts whose sector occupancy agrees best, then each with its neighbours.
@@ -249,7 +252,7 @@ PolarMatch compareChecked(const PolarContext& a, const PolarContext& b, int shif
 			best[static_cast<std::size_t>(i)] = best[static_cast<std::size_t>(i - 1)];
 		best[static_cast<std::size_t>(i)] = e;
 	}
-	const uint64_t bitsA = S <= 64 ? occupancyBits(a) : 0, bitsB = S <= 64 ? occupancyBits(b) : 0;
+	const uint64_t bitsB = S <= 64 ? occupancyBits(b) : 0;
 	Scratch<int, 48> tried(static_cast<std::size_t>(3 * k));
 	int triedCount = 0;
 	PolarMatch match;
@@ -280,7 +283,7 @@ std::vector<int> sectorKeyDistances(const PolarContext& a, const PolarContext& b
 PolarMatch comparePolar(const PolarContext& a, const PolarContext& b, int shiftCandidates)
 {
 	requireComparable(a, b, "comparePolar");
-	return compareChecked(a, b, shiftCandidates);
+	return compareChecked(a, a.sectors <= 64 ? occupancyBits(a) : 0, b, shiftCandidates);
 }
 
 std::vector<uint8_t> quantizedCells(const PolarContext& c, float step_m)
@@ -366,6 +369,7 @@ std::vector<PolarIndex::Result> PolarIndex::query(const PolarContext& q,
 	std::sort(byRing.begin(), byRing.begin() + static_cast<std::ptrdiff_t>(k));
 	std::vector<Result> out;
 	out.reserve(k);
+	const uint64_t bitsQ = q.sectors <= 64 ? occupancyBits(q) : 0;
 	// The candidates lie anywhere in memory, each behind pointers: each comparison waited for
 	// its context, then for its keys. The context two ahead and the keys of the next one are
 	// fetched while one is compared.
@@ -390,8 +394,8 @@ std::vector<PolarIndex::Result> PolarIndex::query(const PolarContext& q,
 			         std::min<std::size_t>(4 * 64, 4 * next.sectorKey.size()));
 			prefetch(next.columns.data(), std::min<std::size_t>(4 * 64, 4 * next.columns.size()));
 		}
-		out.push_back(
-		    {byRing[i].second, compareChecked(q, places_[byRing[i].second], p_.shiftCandidates)});
+		out.push_back({byRing[i].second,
+		               compareChecked(q, bitsQ, places_[byRing[i].second], p_.shiftCandidates)});
 	}
 	std::sort(out.begin(), out.end(),
 	          [](const Result& a, const Result& b)

@@ -156,6 +156,10 @@ class Database : public mrpt::serialization::CSerializable
 		std::vector<EntryId> entries;
 		std::vector<double> weights;
 	};
+	/** Adds entry `id`'s postings for `words` (sorted, every id under kMaxWords); `id` must
+	 *  be above every entry's already posted, so each word's postings stay sorted. */
+	void post(EntryId id, const std::vector<std::pair<WordId, double>>& words);
+
 	int levelsUp_ = 2;
 	EntryId next_ = 0;
 	std::map<EntryId, Entry> entries_;
