@@ -16,7 +16,7 @@ PKGS=(
   libceres-dev
   libcli11-dev nlohmann-json3-dev
   libyaml-cpp-dev
-  clang-format-14 jq
+  clang-format-14 jq time
 )
 
 if [ "${RASTERSLAM_SKIP_DEPS:-0}" = "1" ]; then

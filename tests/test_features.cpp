@@ -887,3 +887,68 @@ TEST(PlanarSearch, FindsAFarTurnedPoseWithNoPriorAndNothingOnBareGround)
 	EXPECT_LT(Eigen::AngleAxisd(r.front().T.linear().transpose() * Tr.linear()).angle() / kDeg,
 	          2.0);
 }
+
+// freeSpaceConflicts: an alignment that puts one cloud's walls and poles where the other saw
+// bare ground is contradicted; the right one is not, and neither is what one side could not see.
+TEST(FreeSpace, WallsOnTheOtherSidesBareGroundContradictAnAlignment)
+{
+	// A street between two walls, 8 m apart, with two poles.
+	const auto pole = [](float x, float y)
+	{
+		std::vector<Eigen::Vector3f> p;
+		for (float z = 0.1f; z < 5; z += 0.1f)
+			p.emplace_back(x, y, z);
+		return p;
+	};
+	auto street = scene({{-19, -4, 19, -4}, {-19, 4, 19, 4}}, 3);
+	for (const auto& [x, y] : {std::pair{-6.f, 2.5f}, std::pair{9.f, -2.5f}})
+	{
+		const auto p = pole(x, y);
+		street.insert(street.end(), p.begin(), p.end());
+	}
+	// The same street seen from 5 m along it and turned by 20 degrees, its own noise.
+	const Eigen::Isometry3d T = motion(20, Eigen::Vector3d(5, 0, 0));
+	auto again = moved(scene({{-19, -4, 19, -4}, {-19, 4, 19, 4}}, 11), T.inverse());
+	for (const auto& [x, y] : {std::pair{-6.f, 2.5f}, std::pair{9.f, -2.5f}})
+	{
+		const auto p = moved(pole(x, y), T.inverse());
+		again.insert(again.end(), p.begin(), p.end());
+	}
+	// Right: nothing contradicts (the walls' and poles' cells hold structure on both sides).
+	const auto right = features::freeSpaceConflicts(again, street, T);
+	EXPECT_GT(right.compared, 100u);  // the walls' cells, both ways
+	EXPECT_EQ(right.conflicts, 0u);
+	// 0.6 m off across the street still right: the pole at y = -2.5 moves into the next cell,
+	// which is not bare, its neighbour holding the other side's pole.
+	EXPECT_EQ(features::freeSpaceConflicts(again, street, motion(0, {0, 0.6, 0}) * T).conflicts,
+	          0u);
+	// Wrong: shifted 3 m across the street, one wall stands on the road and the poles move
+	// to where the other side saw ground.
+	const auto across = features::freeSpaceConflicts(again, street, motion(0, {0, 3, 0}) * T);
+	EXPECT_GT(across.share(), 0.3) << across.conflicts << " of " << across.compared;
+	// Turned by 90 degrees: the walls cross the road.
+	const auto turned = features::freeSpaceConflicts(again, street, motion(90, {0, 0, 0}) * T);
+	EXPECT_GT(turned.share(), 0.3) << turned.conflicts << " of " << turned.compared;
+	// A pole that only one side has where the other saw bare ground: one pole's cell, both
+	// ways as compared by the other's.
+	auto moreOnStreet = street;
+	const auto extra = pole(0, 0);
+	moreOnStreet.insert(moreOnStreet.end(), extra.begin(), extra.end());
+	const auto one = features::freeSpaceConflicts(again, moreOnStreet, T);
+	EXPECT_EQ(one.conflicts, 1u);
+	// What one side did not observe is not free space: the pole beyond the other's ground
+	// (x = 30 m, outside its 40 x 40 m patch) conflicts with nothing.
+	auto beyond = street;
+	const auto far = pole(30, 0);
+	beyond.insert(beyond.end(), far.begin(), far.end());
+	EXPECT_EQ(features::freeSpaceConflicts(again, beyond, T).conflicts, 0u);
+	// Structure above the band (a canopy 4 m up with nothing below) is not low structure.
+	auto canopy = street;
+	for (float x = -1; x < 1; x += 0.1f)
+		for (float y = -1; y < 1; y += 0.1f)
+			canopy.emplace_back(x, y, 4.f);
+	EXPECT_EQ(features::freeSpaceConflicts(again, canopy, T).conflicts, 0u);
+	// Nothing to compare: no share.
+	EXPECT_EQ(features::freeSpaceConflicts({}, street, T).compared, 0u);
+	EXPECT_EQ(features::freeSpaceConflicts({}, street, T).share(), 0.0);
+}

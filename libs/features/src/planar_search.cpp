@@ -187,4 +187,68 @@ std::vector<PlanarHypothesis> planarSearch(const std::vector<Eigen::Vector3f>& s
 	return out;
 }
 
+FreeSpaceCheck freeSpaceConflicts(const std::vector<Eigen::Vector3f>& source,
+                                  const std::vector<Eigen::Vector3f>& target,
+                                  const Eigen::Isometry3d& T, const FreeSpaceParams& params)
+{
+	// Each side's points by 1 m cell: the heights, for the lowest and highest and for the
+	// band above the other side's ground.
+	const double cell = params.cell_m, flatSpan = params.flatSpan_m, bandLow = params.bandLow_m,
+	             bandHigh = params.bandHigh_m;
+	using Cells = std::unordered_map<int64_t, std::vector<float>>;
+	const auto key = [](int64_t cx, int64_t cy) { return cx * (int64_t(1) << 24) + cy; };
+	const auto fill = [&](Cells& cells, const Eigen::Vector3f& p)
+	{
+		if (!p.allFinite())
+			return;
+		cells[key(static_cast<int64_t>(std::floor(p.x() / cell)),
+		          static_cast<int64_t>(std::floor(p.y() / cell)))]
+		    .push_back(p.z());
+	};
+	Cells targetCells, sourceCells;
+	for (const auto& p : target)
+		fill(targetCells, p);
+	const Eigen::Isometry3f Tf = T.cast<float>();
+	for (const auto& p : source)
+		fill(sourceCells, Tf * p);
+	// A cell is bare ground when it and its eight neighbours are observed and flat.
+	const auto bareGround = [&](const Cells& cells, int64_t k)
+	{
+		for (int64_t dx = -1; dx <= 1; dx++)
+			for (int64_t dy = -1; dy <= 1; dy++)
+			{
+				const auto it = cells.find(k + dx * (int64_t(1) << 24) + dy);
+				if (it == cells.end())
+					return false;
+				const auto [lo, hi] = std::minmax_element(it->second.begin(), it->second.end());
+				if (*hi - *lo > flatSpan)
+					return false;
+			}
+		return true;
+	};
+	FreeSpaceCheck out;
+	const auto oneWay = [&](const Cells& structure, const Cells& ground)
+	{
+		for (const auto& [k, zs] : structure)
+		{
+			const auto g = ground.find(k);
+			if (g == ground.end())
+				continue;  // the other side did not look there
+			const float gLow = *std::min_element(g->second.begin(), g->second.end());
+			// Low structure of this side, above the other side's lowest point there.
+			const bool low =
+			    std::any_of(zs.begin(), zs.end(),
+			                [&](float z) { return z >= gLow + bandLow && z <= gLow + bandHigh; });
+			if (!low)
+				continue;
+			out.compared++;
+			if (bareGround(ground, k))
+				out.conflicts++;
+		}
+	};
+	oneWay(sourceCells, targetCells);
+	oneWay(targetCells, sourceCells);
+	return out;
+}
+
 }  // namespace rasterslam::features

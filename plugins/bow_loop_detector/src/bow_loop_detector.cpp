@@ -76,6 +76,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	    p.getDouble("surface_search_inlier_ratio", surfaceSearchInlierRatio_);
 	surfaceSearchMinInliers_ = p.getInt("surface_search_min_inliers", surfaceSearchMinInliers_);
 	surfaceSearchMinAgreeing_ = p.getInt("surface_search_min_agreeing", surfaceSearchMinAgreeing_);
+	surfaceSearchMaxConflicts_ =
+	    p.getDouble("surface_search_max_conflicts", surfaceSearchMaxConflicts_);
 	planar_.yawStep_deg = p.getDouble("surface_search_yaw_step_deg", planar_.yawStep_deg);
 	planar_.range_m = icpRange_m_;
 	planar_.hypotheses = p.getInt("surface_search_hypotheses", planar_.hypotheses);
@@ -120,6 +122,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(surfaceSearchInlierRatio_, 1, "surface_search_inlier_ratio");
 	p.requireAtLeast(surfaceSearchMinInliers_, 3, "surface_search_min_inliers");
 	p.requireAtLeast(surfaceSearchMinAgreeing_, 0, "surface_search_min_agreeing");
+	p.requireRange(surfaceSearchMaxConflicts_, 0, 1, "surface_search_max_conflicts");
 	p.requireRange(planar_.yawStep_deg, 0.1, 90, "surface_search_yaw_step_deg");
 	p.requireRange(planar_.hypotheses, 1, 64, "surface_search_hypotheses");
 

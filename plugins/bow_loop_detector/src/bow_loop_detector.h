@@ -132,6 +132,7 @@ class BowLoopDetector : public LoopDetector
 	int surfaceSearchCandidates_ = 2;
 	double surfaceSearchMinOverlap_ = 0.2, surfaceSearchInlierRatio_ = 2.0;
 	int surfaceSearchMinInliers_ = 30, surfaceSearchMinAgreeing_ = 12;
+	double surfaceSearchMaxConflicts_ = 0.05;
 	features::PlanarSearchParams planar_;
 	bool icpRefine_ = false;
 	features::IcpParams icp_;

@@ -270,13 +270,19 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			    static_cast<double>(held.front().inliers) >=
 			        surfaceSearchInlierRatio_ * static_cast<double>(second);
 			const std::size_t agreeing = agreeingMatches(q, *data, held.front().T, 1.0);
+			// Another town's street can hold as many features and as much surface as the right
+			// one, but not the same free space: its walls and poles stand on the map's road.
+			const auto free =
+			    features::freeSpaceConflicts(surface, surfaceOf(*data), held.front().T);
+			const bool taken = distinct &&
+			                   agreeing >= static_cast<std::size_t>(surfaceSearchMinAgreeing_) &&
+			                   free.share() <= surfaceSearchMaxConflicts_;
 			MRPT_LOG_DEBUG_FMT(
-			    "surface pose on local map %llu: %zu guided inliers, next %zu, %zu agreeing: %s",
+			    "surface pose on local map %llu: %zu guided inliers, next %zu, %zu agreeing, "
+			    "free-space conflicts %zu of %zu (%.3f): %s",
 			    static_cast<unsigned long long>(data->id), held.front().inliers, second, agreeing,
-			    distinct && agreeing >= static_cast<std::size_t>(surfaceSearchMinAgreeing_)
-			        ? "taken"
-			        : "refused");
-			if (!distinct || agreeing < static_cast<std::size_t>(surfaceSearchMinAgreeing_))
+			    free.conflicts, free.compared, free.share(), taken ? "taken" : "refused");
+			if (!taken)
 				continue;
 			const auto T = std::optional<Eigen::Isometry3d>(held.front().T);
 			const std::size_t inliers = held.front().inliers;

@@ -40,4 +40,33 @@ std::vector<PlanarHypothesis> planarSearch(const std::vector<Eigen::Vector3f>& s
                                            const std::vector<Eigen::Vector3f>& target,
                                            const PlanarSearchParams& params = {});
 
+struct FreeSpaceParams
+{
+	double cell_m = 1.0;      //!< cells of the top view compared
+	double flatSpan_m = 0.3;  //!< bare ground: a cell and its 8 neighbours span less height
+	double bandLow_m = 0.7;   //!< low structure: points this far above the other side's
+	double bandHigh_m = 2.5;  //!< lowest point in the cell, up to this far
+};
+
+/** What contradicts an alignment of two clouds on the free space they observed. */
+struct FreeSpaceCheck
+{
+	/** Cells where one cloud has low structure and the other has points (both ways). */
+	std::size_t compared = 0;
+	/** Of those, the cells that the other cloud saw as bare ground all around. */
+	std::size_t conflicts = 0;
+	double share() const { return compared ? double(conflicts) / double(compared) : 0.0; }
+};
+
+/** Checks `source` placed by T (source frame to target frame) on `target`: low structure of
+ *  one cloud (bandLow_m-bandHigh_m above the other's lowest point in a cell: walls, poles,
+ *  trunks, vehicles, at heights a vehicle's LiDAR sees at any range) where the other saw bare
+ *  ground all around (the cell and its eight neighbours observed, each spanning under
+ *  flatSpan_m). A wrong alignment puts one place's walls and poles on the other's street; a
+ *  right one conflicts only where something moved. Both clouds in frames whose z axes are
+ *  near the vertical. */
+FreeSpaceCheck freeSpaceConflicts(const std::vector<Eigen::Vector3f>& source,
+                                  const std::vector<Eigen::Vector3f>& target,
+                                  const Eigen::Isometry3d& T, const FreeSpaceParams& params = {});
+
 }  // namespace rasterslam::features

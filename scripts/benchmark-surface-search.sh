@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Far revisits searched on the surfaces, and what refuses wrong places (the place-recognition
+# issue): the loop detector's relocalization_surface_search against slam.yaml without it, on
+#  - the KITTI street mapped from its first 51 real scans, relocalizing the 160 HDL-64E scans
+#    that `rasterslam-sim --kitti` renders from the whole route (every 5 m, 0/3/6 m to either
+#    side, both directions): places up to 50 m beyond the mapped part, exact truth;
+#  - 200 scans of each of two other simulated towns (seeds 7 and 1001 of rawlogs/town-loop.yaml)
+#    against the map of the town-loop drive: every placement there is wrong.
+# Prints each side's relocalization table (rasterslam-eval reloc), the placements in the other
+# towns, seconds, peak memory, and for every alignment the surface search judged its share of
+# free-space conflicts (features::freeSpaceConflicts), taken and refused apart.
+# usage: scripts/benchmark-surface-search.sh     (env: BUILD, WORK, DATA)
+set -euo pipefail
+here="$(cd "$(dirname "$0")/.." && pwd)"
+BUILD="${BUILD:-$here/build}"
+WORK="${WORK:-$BUILD/bench-surface-search}"
+DATA="${DATA:-$here/../shared/data}"
+bin="$BUILD/bin"
+D="$DATA/kitti00-0000-0100"
+[ -d "$D/velodyne" ] || { echo "benchmark-surface-search: $D/velodyne not found (set DATA)" >&2; exit 1; }
+for p in rasterslam rasterslam-eval rasterslam-sim kitti2rawlog; do
+  [ -x "$bin/$p" ] || { echo "benchmark-surface-search: $bin/$p not built (make build)" >&2; exit 1; }
+done
+rm -rf "$WORK"
+mkdir -p "$WORK"
+cd "$WORK"
+vocab="s#vocabulary_file: ../vocab/#vocabulary_file: $here/share/rasterslam/vocab/#"
+sed -e "$vocab" "$here/share/rasterslam/config/slam.yaml" > off.yaml
+# The same with the search on (the key goes under the loop detector's params).
+awk '{print} /class: rasterslam::BowLoopDetector/ {lp=1} lp && /^  params:/ {print "    relocalization_surface_search: true"; lp=0}' \
+  off.yaml > on.yaml
+grep -q "relocalization_surface_search: true" on.yaml || { echo "benchmark-surface-search: could not switch the search on in on.yaml" >&2; exit 1; }
+
+# quietly CMD...: its output only if it fails
+quietly() { "$@" > quiet.log 2>&1 || { cat quiet.log >&2; echo "benchmark-surface-search: failed: $*" >&2; exit 1; }; }
+echo "making the maps and queries..."
+quietly "$bin/kitti2rawlog" --velodyne "$D/velodyne" --poses "$D/poses_semantickitti.txt" --calib "$D/calib.txt" \
+  --times "$D/times.txt" --compress 0 -o k.rawlog
+quietly "$bin/rasterslam" run --rawlog k.rawlog --config off.yaml --out krun --map-out kmap --last 50 --quiet
+quietly "$bin/rasterslam-sim" --kitti "$D" -o q.rawlog --gt-tum q.tum --compress 0
+quietly "$bin/rasterslam-sim" --scenario "$here/rawlogs/town-loop.yaml" -o town.rawlog --compress 0
+quietly "$bin/rasterslam" run --rawlog town.rawlog --config off.yaml --out town-run --map-out town-map --quiet
+for s in 7 1001; do
+  quietly "$bin/rasterslam-sim" --scenario "$here/rawlogs/town-loop.yaml" --seed "$s" --scans 200 -o "other$s.rawlog" --compress 0
+done
+
+# relocalize NAME MAP RAWLOG CONFIG: seconds and peak memory (MB) on stdout, the log in NAME.log
+relocalize() {
+  local t0 t1
+  t0=$(date +%s.%N)
+  /usr/bin/time -f "%M" -o "$1.mem" "$bin/rasterslam" relocalize --map "$2" --rawlog "$3" --out "$1" \
+    --config "$4" --verbose > "$1.log" 2>&1
+  t1=$(date +%s.%N)
+  awk -v a="$t0" -v b="$t1" -v m="$(cat "$1.mem")" 'BEGIN {printf "%.1f s, peak %.0f MB", b - a, m / 1024}'
+}
+# shares NAME: the free-space conflict shares of the alignments judged, taken and refused.
+shares() {
+  grep -o "free-space conflicts [0-9]* of [0-9]* ([0-9.]*): [a-z]*" "$1.log" |
+    awk '{gsub(/[():]/, ""); v[$7] = v[$7] " " $6} END {
+      for (k in v) { n = split(v[k], a, " "); mn = a[1]; mx = a[1]
+        for (i = 2; i <= n; i++) { if (a[i] < mn) mn = a[i]; if (a[i] > mx) mx = a[i] }
+        printf "  %s: %d alignments, conflict share %.3f-%.3f\n", k, n, mn, mx } }' | sort
+}
+for mode in off on; do
+  echo
+  echo "== surface search $mode"
+  echo "KITTI street, 160 rendered scans against the map of its first 51 ($(relocalize "k-$mode" kmap q.rawlog $mode.yaml)):"
+  "$bin/rasterslam-eval" reloc --reloc "k-$mode/relocalization.txt" --gt q.tum --map-gt krun/groundtruth.tum \
+    --map-est krun/trajectory.tum
+  [ "$mode" = on ] && shares "k-$mode"
+  for s in 7 1001; do
+    took="$(relocalize "o$s-$mode" town-map "other$s.rawlog" $mode.yaml)"
+    placed=$(grep -c " found " "o$s-$mode/relocalization.txt" || true)
+    echo "town seed $s, 200 scans against the town-loop map: $placed placed (all wrong) ($took)"
+    [ "$mode" = on ] && shares "o$s-$mode"
+  done
+done
