@@ -6,10 +6,15 @@
 #    side, both directions): places up to 50 m beyond the mapped part, exact truth;
 #  - 200 scans of each of two other simulated towns (seeds 7 and 1001 of rawlogs/town-loop.yaml)
 #    against the map of the town-loop drive: every placement there is wrong.
+#  - with SESSIONS=DIR (the WORK of a scripts/benchmark-sessions.sh run, which leaves its
+#    scenarios there): a town that changed: the map of session 1 (epoch 0, lifelong.yaml), and
+#    the first 150 scans of sessions 9 (HDL-64E) and 10 (VLP-16), 8 and 9 epochs later
+#    (parked cars moved, walls built and pulled down, trees grown; cars and people moving).
 # Prints each side's relocalization table (rasterslam-eval reloc), the placements in the other
 # towns, seconds, peak memory, and for every alignment the surface search judged its share of
-# free-space conflicts (features::freeSpaceConflicts), taken and refused apart.
-# usage: scripts/benchmark-surface-search.sh     (env: BUILD, WORK, DATA)
+# free-space conflicts (features::freeSpaceConflicts), taken and refused apart, and what the
+# check would say of the places found on the features.
+# usage: scripts/benchmark-surface-search.sh     (env: BUILD, WORK, DATA, SESSIONS)
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 BUILD="${BUILD:-$here/build}"
@@ -44,18 +49,22 @@ for s in 7 1001; do
   quietly "$bin/rasterslam-sim" --scenario "$here/rawlogs/town-loop.yaml" --seed "$s" --scans 200 -o "other$s.rawlog" --compress 0
 done
 
-# relocalize NAME MAP RAWLOG CONFIG: seconds and peak memory (MB) on stdout, the log in NAME.log
+# relocalize NAME MAP RAWLOG CONFIG [ARGS...]: seconds and peak memory (MB) on stdout, the log in NAME.log
 relocalize() {
-  local t0 t1
+  local t0 t1 name=$1 map=$2 rawlog=$3 cfg=$4
+  shift 4
   t0=$(date +%s.%N)
-  /usr/bin/time -f "%M" -o "$1.mem" "$bin/rasterslam" relocalize --map "$2" --rawlog "$3" --out "$1" \
-    --config "$4" --verbose > "$1.log" 2>&1
+  /usr/bin/time -f "%M" -o "$name.mem" "$bin/rasterslam" relocalize --map "$map" --rawlog "$rawlog" --out "$name" \
+    --config "$cfg" --verbose "$@" > "$name.log" 2>&1
   t1=$(date +%s.%N)
-  awk -v a="$t0" -v b="$t1" -v m="$(cat "$1.mem")" 'BEGIN {printf "%.1f s, peak %.0f MB", b - a, m / 1024}'
+  awk -v a="$t0" -v b="$t1" -v m="$(cat "$name.mem")" 'BEGIN {printf "%.1f s, peak %.0f MB", b - a, m / 1024}'
 }
-# shares NAME: the free-space conflict shares of the alignments judged, taken and refused.
+# shares NAME: the free-space conflict shares of the alignments judged, taken and refused,
+# and of the places found on the features.
 shares() {
-  grep -o "free-space conflicts [0-9]* of [0-9]* ([0-9.]*): [a-z]*" "$1.log" |
+  { grep -o "free-space conflicts [0-9]* of [0-9]* ([0-9.]*): [a-z]*" "$1.log" || true
+    grep -o "relocalized on the features.*" "$1.log" | sed 's/$/: on-the-features/' || true; } |
+    sed 's/.*free-space conflicts/free-space conflicts/' |
     awk '{gsub(/[():]/, ""); v[$7] = v[$7] " " $6} END {
       for (k in v) { n = split(v[k], a, " "); mn = a[1]; mx = a[1]
         for (i = 2; i <= n; i++) { if (a[i] < mn) mn = a[i]; if (a[i] > mx) mx = a[i] }
@@ -73,5 +82,26 @@ for mode in off on; do
     placed=$(grep -c " found " "o$s-$mode/relocalization.txt" || true)
     echo "town seed $s, 200 scans against the town-loop map: $placed placed (all wrong) ($took)"
     [ "$mode" = on ] && shares "o$s-$mode"
+  done
+done
+
+[ -n "${SESSIONS:-}" ] || exit 0
+for f in lifelong.yaml s1.yaml s9.yaml s10.yaml; do
+  [ -f "$SESSIONS/$f" ] || { echo "benchmark-surface-search: $SESSIONS/$f not found (SESSIONS: a benchmark-sessions.sh WORK)" >&2; exit 1; }
+done
+echo
+echo "== a town that changed (scenarios of $SESSIONS)"
+cp "$SESSIONS/lifelong.yaml" loff.yaml
+awk '{print} /class: rasterslam::BowLoopDetector/ {lp=1} lp && /^  params:/ {print "    relocalization_surface_search: true"; lp=0}' \
+  loff.yaml > lon.yaml
+for n in 1 9 10; do quietly "$bin/rasterslam-sim" --scenario "$SESSIONS/s$n.yaml" -o "c$n.rawlog" --gt-tum "c$n.tum" --compress 0; done
+quietly "$bin/rasterslam" run --rawlog c1.rawlog --config loff.yaml --out c1run --map-out c1map --quiet
+for mode in off on; do
+  for n in 9 10; do
+    took=$(relocalize "c$n-$mode" c1map "c$n.rawlog" "l$mode.yaml" --last 149)
+    echo "session $n's first 150 scans against session 1's map, surface search $mode ($took):"
+    "$bin/rasterslam-eval" reloc --reloc "c$n-$mode/relocalization.txt" --gt "c$n.tum" --map-gt c1run/groundtruth.tum \
+      --map-est c1run/trajectory.tum | grep -E "^all|^group"
+    shares "c$n-$mode"
   done
 done

@@ -936,6 +936,19 @@ TEST(FreeSpace, WallsOnTheOtherSidesBareGroundContradictAnAlignment)
 	moreOnStreet.insert(moreOnStreet.end(), extra.begin(), extra.end());
 	const auto one = features::freeSpaceConflicts(again, moreOnStreet, T);
 	EXPECT_EQ(one.conflicts, 1u);
+	// With minTop_m, only what also rises higher conflicts: a car-high box (1.5 m) on the
+	// street does not, the pole (5 m) still does.
+	auto parkedCar = street;
+	for (float x = -2; x < 2; x += 0.1f)
+		for (float z = 0.1f; z < 1.5f; z += 0.1f)
+			parkedCar.emplace_back(x, 0.5f, z);
+	features::FreeSpaceParams tall;
+	tall.minTop_m = 2.5;
+	EXPECT_GE(features::freeSpaceConflicts(again, parkedCar, T).conflicts, 4u);
+	EXPECT_EQ(features::freeSpaceConflicts(again, parkedCar, T, tall).conflicts, 0u);
+	EXPECT_EQ(features::freeSpaceConflicts(again, moreOnStreet, T, tall).conflicts, 1u);
+	EXPECT_GT(features::freeSpaceConflicts(again, street, motion(0, {0, 3, 0}) * T, tall).share(),
+	          0.3);
 	// What one side did not observe is not free space: the pole beyond the other's ground
 	// (x = 30 m, outside its 40 x 40 m patch) conflicts with nothing.
 	auto beyond = street;

@@ -238,7 +238,9 @@ FreeSpaceCheck freeSpaceConflicts(const std::vector<Eigen::Vector3f>& source,
 			// Low structure of this side, above the other side's lowest point there.
 			const bool low =
 			    std::any_of(zs.begin(), zs.end(),
-			                [&](float z) { return z >= gLow + bandLow && z <= gLow + bandHigh; });
+			                [&](float z) { return z >= gLow + bandLow && z <= gLow + bandHigh; }) &&
+			    (params.minTop_m <= 0 ||
+			     *std::max_element(zs.begin(), zs.end()) > gLow + params.minTop_m);
 			if (!low)
 				continue;
 			out.compared++;

@@ -78,6 +78,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	surfaceSearchMinAgreeing_ = p.getInt("surface_search_min_agreeing", surfaceSearchMinAgreeing_);
 	surfaceSearchMaxConflicts_ =
 	    p.getDouble("surface_search_max_conflicts", surfaceSearchMaxConflicts_);
+	freeSpace_.minTop_m = p.getDouble("surface_search_min_top_m", freeSpace_.minTop_m);
 	planar_.yawStep_deg = p.getDouble("surface_search_yaw_step_deg", planar_.yawStep_deg);
 	planar_.range_m = icpRange_m_;
 	planar_.hypotheses = p.getInt("surface_search_hypotheses", planar_.hypotheses);
@@ -123,6 +124,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(surfaceSearchMinInliers_, 3, "surface_search_min_inliers");
 	p.requireAtLeast(surfaceSearchMinAgreeing_, 0, "surface_search_min_agreeing");
 	p.requireRange(surfaceSearchMaxConflicts_, 0, 1, "surface_search_max_conflicts");
+	p.requireRange(freeSpace_.minTop_m, 0, 100, "surface_search_min_top_m");
 	p.requireRange(planar_.yawStep_deg, 0.1, 90, "surface_search_yaw_step_deg");
 	p.requireRange(planar_.hypotheses, 1, 64, "surface_search_hypotheses");
 

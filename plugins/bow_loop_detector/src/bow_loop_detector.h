@@ -133,6 +133,14 @@ class BowLoopDetector : public LoopDetector
 	double surfaceSearchMinOverlap_ = 0.2, surfaceSearchInlierRatio_ = 2.0;
 	int surfaceSearchMinInliers_ = 30, surfaceSearchMinAgreeing_ = 12;
 	double surfaceSearchMaxConflicts_ = 0.05;
+	/** The surface search's free-space check: of tall structure only (surface_search_min_top_m):
+	 *  people and vehicles move between sessions. */
+	features::FreeSpaceParams freeSpace_ = []
+	{
+		features::FreeSpaceParams p;
+		p.minTop_m = 2.5;
+		return p;
+	}();
 	features::PlanarSearchParams planar_;
 	bool icpRefine_ = false;
 	features::IcpParams icp_;

@@ -273,7 +273,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			// Another town's street can hold as many features and as much surface as the right
 			// one, but not the same free space: its walls and poles stand on the map's road.
 			const auto free =
-			    features::freeSpaceConflicts(surface, surfaceOf(*data), held.front().T);
+			    features::freeSpaceConflicts(surface, surfaceOf(*data), held.front().T, freeSpace_);
 			const bool taken = distinct &&
 			                   agreeing >= static_cast<std::size_t>(surfaceSearchMinAgreeing_) &&
 			                   free.share() <= surfaceSearchMaxConflicts_;
@@ -314,6 +314,18 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		res.keyframeStamp = map.keyframes.at(res.keyframe)->stamp;
 		res.keyframePose = poses.at(res.keyframe);
 		res.pose = poses.at(bestMap->anchor()) + toPose(bestT);
+	}
+	if (bestMap && q.surface && getMinLoggingLevel() <= mrpt::system::LVL_DEBUG)
+	{
+		// What the surface search's free-space check would say of a place found on the
+		// features (measured, not applied: see surface_search_max_conflicts).
+		const auto free =
+		    features::freeSpaceConflicts(q.surface(), surfaceOf(*bestMap), bestT, freeSpace_);
+		MRPT_LOG_DEBUG_FMT(
+		    "relocalized on the features on local map %llu: %zu inliers, free-space conflicts "
+		    "%zu of %zu (%.3f)",
+		    static_cast<unsigned long long>(bestMap->id), res.inliers, free.conflicts,
+		    free.compared, free.share());
 	}
 	return res;
 }

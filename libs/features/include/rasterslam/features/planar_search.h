@@ -46,6 +46,9 @@ struct FreeSpaceParams
 	double flatSpan_m = 0.3;  //!< bare ground: a cell and its 8 neighbours span less height
 	double bandLow_m = 0.7;   //!< low structure: points this far above the other side's
 	double bandHigh_m = 2.5;  //!< lowest point in the cell, up to this far
+	/** and reaches higher than this above that point in the same cell: walls, poles, trunks
+	 *  under their crowns, not people and vehicles, which move (0: any height) */
+	double minTop_m = 0.0;
 };
 
 /** What contradicts an alignment of two clouds on the free space they observed. */
@@ -60,11 +63,11 @@ struct FreeSpaceCheck
 
 /** Checks `source` placed by T (source frame to target frame) on `target`: low structure of
  *  one cloud (bandLow_m-bandHigh_m above the other's lowest point in a cell: walls, poles,
- *  trunks, vehicles, at heights a vehicle's LiDAR sees at any range) where the other saw bare
- *  ground all around (the cell and its eight neighbours observed, each spanning under
- *  flatSpan_m). A wrong alignment puts one place's walls and poles on the other's street; a
- *  right one conflicts only where something moved. Both clouds in frames whose z axes are
- *  near the vertical. */
+ *  trunks, vehicles, at heights a vehicle's LiDAR sees at any range; with minTop_m, only what
+ *  also rises higher) where the other saw bare ground all around (the cell and its eight
+ *  neighbours observed, each spanning under flatSpan_m). A wrong alignment puts one place's
+ *  walls and poles on the other's street; a right one conflicts only where something moved
+ *  or was built. Both clouds in frames whose z axes are near the vertical. */
 FreeSpaceCheck freeSpaceConflicts(const std::vector<Eigen::Vector3f>& source,
                                   const std::vector<Eigen::Vector3f>& target,
                                   const Eigen::Isometry3d& T, const FreeSpaceParams& params = {});
