@@ -961,6 +961,19 @@ TEST(FreeSpace, WallsOnTheOtherSidesBareGroundContradictAnAlignment)
 		for (float y = -1; y < 1; y += 0.1f)
 			canopy.emplace_back(x, y, 4.f);
 	EXPECT_EQ(features::freeSpaceConflicts(again, canopy, T).conflicts, 0u);
+	// Points no cell holds (not finite, or beyond 2^22 cells) are left out, not packed into
+	// another cell's key; a cell that is not positive is refused.
+	auto strange = again;
+	strange.emplace_back(1e30f, 0.f, 1.f);
+	strange.emplace_back(0.f, -1e30f, 1.f);
+	strange.emplace_back(std::nanf(""), 0.f, 1.f);
+	strange.emplace_back(0.f, 0.f, std::numeric_limits<float>::infinity());
+	const auto same = features::freeSpaceConflicts(strange, street, T);
+	EXPECT_EQ(same.compared, right.compared);
+	EXPECT_EQ(same.conflicts, right.conflicts);
+	features::FreeSpaceParams noCell;
+	noCell.cell_m = 0;
+	EXPECT_THROW(features::freeSpaceConflicts(again, street, T, noCell), std::invalid_argument);
 	// Nothing to compare: no share.
 	EXPECT_EQ(features::freeSpaceConflicts({}, street, T).compared, 0u);
 	EXPECT_EQ(features::freeSpaceConflicts({}, street, T).share(), 0.0);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/core.hpp>
+#include <stdexcept>
 #include <unordered_map>
 
 namespace rasterslam::features
@@ -193,17 +194,21 @@ FreeSpaceCheck freeSpaceConflicts(const std::vector<Eigen::Vector3f>& source,
 {
 	// Each side's points by 1 m cell: the heights, for the lowest and highest and for the
 	// band above the other side's ground.
+	if (!(params.cell_m > 0) || !std::isfinite(params.cell_m))
+		throw std::invalid_argument("freeSpaceConflicts: the cell must be positive and finite");
 	const double cell = params.cell_m, flatSpan = params.flatSpan_m, bandLow = params.bandLow_m,
 	             bandHigh = params.bandHigh_m;
 	using Cells = std::unordered_map<int64_t, std::vector<float>>;
+	// Cells packed as cx * 2^24 + cy: a point more than 2^22 cells from the origin (4,194 km
+	// at 1 m) is left out, so that a cell and its neighbours stay distinct and the indices fit.
+	constexpr double kReach = double(int64_t(1) << 22);
 	const auto key = [](int64_t cx, int64_t cy) { return cx * (int64_t(1) << 24) + cy; };
 	const auto fill = [&](Cells& cells, const Eigen::Vector3f& p)
 	{
-		if (!p.allFinite())
-			return;
-		cells[key(static_cast<int64_t>(std::floor(p.x() / cell)),
-		          static_cast<int64_t>(std::floor(p.y() / cell)))]
-		    .push_back(p.z());
+		const double cx = std::floor(p.x() / cell), cy = std::floor(p.y() / cell);
+		if (!std::isfinite(p.z()) || !(std::abs(cx) < kReach) || !(std::abs(cy) < kReach))
+			return;  // also NaN and inf
+		cells[key(static_cast<int64_t>(cx), static_cast<int64_t>(cy))].push_back(p.z());
 	};
 	Cells targetCells, sourceCells;
 	for (const auto& p : target)

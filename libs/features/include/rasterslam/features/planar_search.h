@@ -67,7 +67,9 @@ struct FreeSpaceCheck
  *  also rises higher) where the other saw bare ground all around (the cell and its eight
  *  neighbours observed, each spanning under flatSpan_m). A wrong alignment puts one place's
  *  walls and poles on the other's street; a right one conflicts only where something moved
- *  or was built. Both clouds in frames whose z axes are near the vertical. */
+ *  or was built. Both clouds in frames whose z axes are near the vertical; points that are
+ *  not finite or lie more than 2^22 cells from the origin are left out. Throws
+ *  std::invalid_argument unless cell_m is positive and finite. */
 FreeSpaceCheck freeSpaceConflicts(const std::vector<Eigen::Vector3f>& source,
                                   const std::vector<Eigen::Vector3f>& target,
                                   const Eigen::Isometry3d& T, const FreeSpaceParams& params = {});
