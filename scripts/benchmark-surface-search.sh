@@ -31,10 +31,13 @@ mkdir -p "$WORK"
 cd "$WORK"
 vocab="s#vocabulary_file: ../vocab/#vocabulary_file: $here/share/rasterslam/vocab/#"
 sed -e "$vocab" "$here/share/rasterslam/config/slam.yaml" > off.yaml
-# The same with the search on (the key goes under the loop detector's params).
-awk '{print} /class: rasterslam::BowLoopDetector/ {lp=1} lp && /^  params:/ {print "    relocalization_surface_search: true"; lp=0}' \
-  off.yaml > on.yaml
-grep -q "relocalization_surface_search: true" on.yaml || { echo "benchmark-surface-search: could not switch the search on in on.yaml" >&2; exit 1; }
+# search_on IN OUT: the config IN with the search on (the key goes under the loop detector's params)
+search_on() {
+  awk '{print} /class: rasterslam::BowLoopDetector/ {lp=1} lp && /^  params:/ {print "    relocalization_surface_search: true"; lp=0}' \
+    "$1" > "$2"
+  grep -q "relocalization_surface_search: true" "$2" || { echo "benchmark-surface-search: could not switch the search on in $2" >&2; exit 1; }
+}
+search_on off.yaml on.yaml
 
 # quietly CMD...: its output only if it fails
 quietly() { "$@" > quiet.log 2>&1 || { cat quiet.log >&2; echo "benchmark-surface-search: failed: $*" >&2; exit 1; }; }
@@ -92,8 +95,7 @@ done
 echo
 echo "== a town that changed (scenarios of $SESSIONS)"
 cp "$SESSIONS/lifelong.yaml" loff.yaml
-awk '{print} /class: rasterslam::BowLoopDetector/ {lp=1} lp && /^  params:/ {print "    relocalization_surface_search: true"; lp=0}' \
-  loff.yaml > lon.yaml
+search_on loff.yaml lon.yaml
 for n in 1 9 10; do quietly "$bin/rasterslam-sim" --scenario "$SESSIONS/s$n.yaml" -o "c$n.rawlog" --gt-tum "c$n.tum" --compress 0; done
 quietly "$bin/rasterslam" run --rawlog c1.rawlog --config loff.yaml --out c1run --map-out c1map --quiet
 for mode in off on; do

@@ -78,7 +78,8 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	surfaceSearchMinAgreeing_ = p.getInt("surface_search_min_agreeing", surfaceSearchMinAgreeing_);
 	surfaceSearchMaxConflicts_ =
 	    p.getDouble("surface_search_max_conflicts", surfaceSearchMaxConflicts_);
-	freeSpace_.minTop_m = p.getDouble("surface_search_min_top_m", freeSpace_.minTop_m);
+	freeSpace_ = features::FreeSpaceParams();
+	freeSpace_.minTop_m = p.getDouble("surface_search_min_top_m", 2.5);
 	planar_.yawStep_deg = p.getDouble("surface_search_yaw_step_deg", planar_.yawStep_deg);
 	planar_.range_m = icpRange_m_;
 	planar_.hypotheses = p.getInt("surface_search_hypotheses", planar_.hypotheses);

@@ -109,14 +109,16 @@ class BowLoopDetector : public LoopDetector
 	 *  the local map's found with no pose prior and no descriptors: planarSearch's best
 	 *  (x, y, yaw) peaks, each refined by ICP, those whose overlap (the share of the query's
 	 *  points over the local map's footprint that lie on its surface; 0 when fewer than 200
-	 *  of them lie over it) reaches surface_search_min_overlap, largest overlap first. */
+	 *  of them lie over it) reaches surface_search_min_overlap, largest overlap first.
+	 *  `target` is surfaceOf(lm), converted once by the caller. */
 	struct SurfaceAlignment
 	{
 		Eigen::Isometry3d T;
 		double overlap = 0;
 	};
 	std::vector<SurfaceAlignment> searchOnSurface(const std::vector<Eigen::Vector3f>& surface,
-	                                              const LocalMap& lm) const;
+	                                              const LocalMap& lm,
+	                                              const std::vector<Eigen::Vector3f>& target) const;
 	/** The query's features matched with the local map's only within guided_gate_m of where
 	 *  `predicted` (T_anchor_query) puts them, then fitted by RANSAC with guided_min_inliers
 	 *  (inliers as query feature indices). */
@@ -133,14 +135,9 @@ class BowLoopDetector : public LoopDetector
 	double surfaceSearchMinOverlap_ = 0.2, surfaceSearchInlierRatio_ = 2.0;
 	int surfaceSearchMinInliers_ = 30, surfaceSearchMinAgreeing_ = 12;
 	double surfaceSearchMaxConflicts_ = 0.05;
-	/** The surface search's free-space check: of tall structure only (surface_search_min_top_m):
-	 *  people and vehicles move between sessions. */
-	features::FreeSpaceParams freeSpace_ = []
-	{
-		features::FreeSpaceParams p;
-		p.minTop_m = 2.5;
-		return p;
-	}();
+	/** The surface search's free-space check; configure() counts tall structure only
+	 *  (surface_search_min_top_m, 2.5 m): people and vehicles move between sessions. */
+	features::FreeSpaceParams freeSpace_;
 	features::PlanarSearchParams planar_;
 	bool icpRefine_ = false;
 	features::IcpParams icp_;

@@ -244,7 +244,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 				std::size_t inliers = 0;
 			};
 			std::vector<Held> held;
-			for (const auto& a : searchOnSurface(surface, *data))
+			const auto target = surfaceOf(*data);
+			for (const auto& a : searchOnSurface(surface, *data, target))
 			{
 				const auto fit = guidedFit(q, *data, a.T, static_cast<uint32_t>(seed + data->id));
 				const Eigen::Isometry3d off = a.T.inverse() * fit.T;
@@ -270,13 +271,15 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			    static_cast<double>(held.front().inliers) >=
 			        surfaceSearchInlierRatio_ * static_cast<double>(second);
 			const std::size_t agreeing = agreeingMatches(q, *data, held.front().T, 1.0);
+			const bool passes =
+			    distinct && agreeing >= static_cast<std::size_t>(surfaceSearchMinAgreeing_);
 			// Another town's street can hold as many features and as much surface as the right
 			// one, but not the same free space: its walls and poles stand on the map's road.
-			const auto free =
-			    features::freeSpaceConflicts(surface, surfaceOf(*data), held.front().T, freeSpace_);
-			const bool taken = distinct &&
-			                   agreeing >= static_cast<std::size_t>(surfaceSearchMinAgreeing_) &&
-			                   free.share() <= surfaceSearchMaxConflicts_;
+			// Checked when the rest passes (and for the debug log).
+			features::FreeSpaceCheck free;
+			if (passes || getMinLoggingLevel() <= mrpt::system::LVL_DEBUG)
+				free = features::freeSpaceConflicts(surface, target, held.front().T, freeSpace_);
+			const bool taken = passes && free.share() <= surfaceSearchMaxConflicts_;
 			MRPT_LOG_DEBUG_FMT(
 			    "surface pose on local map %llu: %zu guided inliers, next %zu, %zu agreeing, "
 			    "free-space conflicts %zu of %zu (%.3f): %s",

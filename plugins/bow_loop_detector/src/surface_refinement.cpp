@@ -41,13 +41,14 @@ std::shared_ptr<const features::IcpTarget> BowLoopDetector::targetOf(const Local
 }
 
 std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
-    const std::vector<Eigen::Vector3f>& surface, const LocalMap& lm) const
+    const std::vector<Eigen::Vector3f>& surface, const LocalMap& lm,
+    const std::vector<Eigen::Vector3f>& target) const
 {
 	std::vector<SurfaceAlignment> fits;
 	if (surface.empty() || lm.surfacePoints() < 100)
 		return fits;
 	const auto t0 = std::chrono::steady_clock::now();
-	const auto hyps = features::planarSearch(surface, surfaceOf(lm), planar_);
+	const auto hyps = features::planarSearch(surface, target, planar_);
 	const auto t1 = std::chrono::steady_clock::now();
 	std::lock_guard<std::mutex> lock(targetsMutex_);
 	const auto tgt = targetOf(lm);
@@ -66,7 +67,7 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 		return static_cast<int64_t>(std::floor(x / fcell)) * (int64_t(1) << 24) +
 		       static_cast<int64_t>(std::floor(y / fcell));
 	};
-	for (const auto& p : surfaceOf(lm))
+	for (const auto& p : target)
 		footprint.insert(key(p.x(), p.y()));
 	const auto reduced = features::voxelDownsample(surface, icp_.voxel_m);
 	for (const auto& h : hyps)
