@@ -288,8 +288,10 @@ TEST(StrictConfig, OutOfRangeValuesNameFileLineAndKey)
 	     "must be in [0.1, 90], got 0"},
 	    {"loop_detector", "rasterslam::BowLoopDetector", "surface_search_max_conflicts", "1.5",
 	     "must be in [0, 1], got 1.5"},
-	    {"loop_detector", "rasterslam::BowLoopDetector", "surface_search_min_top_m", "-1",
+	    {"loop_detector", "rasterslam::BowLoopDetector", "free_space_min_top_m", "-1",
 	     "must be in [0, 100], got -1"},
+	    {"loop_detector", "rasterslam::BowLoopDetector", "relocalization_max_conflicts", "-0.1",
+	     "must be in [0, 1], got -0.1"},
 	    {"optimizer", "rasterslam::LevMarqOptimizer", "tau", "-1", "must be > 0, got -1"},
 	    {"optimizer", "rasterslam::CeresOptimizer", "max_iterations", "0", "must be >= 1, got 0"},
 	};

@@ -540,6 +540,9 @@ TEST(Relocalization, FarRevisitsFoundOnTheSurfacesOfTheKittiStreet)
 // KITTI ones 32-69). Scan 17's alignment stands walls and poles where the map saw bare ground
 // (0.6 of the compared cells; right alignments, also in a town 9 epochs later, at most 0.015):
 // refused. Scan 9's tall structure agrees with the map's (1 of 92 cells): still placed.
+// relocalization_max_conflicts: the same check for places found on the features. With the
+// verification made lax (relocalization_min_inliers 12 instead of 18), scans 9 and 17 are
+// placed on the features too; scan 17's fit is refused on its free space.
 TEST(Relocalization, AnotherTownPassingEveryOtherCheckIsRefusedOnItsFreeSpace)
 {
 	test::ScopedTempDir tmp("reloc-free-space");
@@ -557,12 +560,21 @@ TEST(Relocalization, AnotherTownPassingEveryOtherCheckIsRefusedOnItsFreeSpace)
 	                     test::sourcePath("rawlogs/town-loop.yaml") +
 	                     " --seed 1001 --scans 18 --compress 0 -o " + other);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	const auto relocalize = [&](const std::string& extra, const std::string& out)
+	const auto relocalize =
+	    [&](const std::string& extra, const std::string& out, bool surface = true)
 	{
 		const auto cfg = dir / (out + ".yaml");
+		auto yaml = slamYaml();
+		if (!surface)  // lax verification on the features instead
+		{
+			const std::regex lax("relocalization_min_inliers: 18 ");
+			EXPECT_TRUE(std::regex_search(yaml, lax));
+			yaml = std::regex_replace(yaml, lax, "relocalization_min_inliers: 12 ");
+		}
 		std::ofstream(cfg) << std::regex_replace(
-		    slamYaml(), std::regex("\n    min_score:"),
-		    "\n    relocalization_surface_search: true" + extra + "\n    min_score:");
+		    yaml, std::regex("\n    min_score:"),
+		    std::string(surface ? "\n    relocalization_surface_search: true" : "") + extra +
+		        "\n    min_score:");
 		const auto rr = test::runCommand(test::bin("rasterslam") +
 		                                 " relocalize --quiet --first 9 --last 17 --map " +
 		                                 (dir / "map").string() + " --config " + cfg.string() +
@@ -590,6 +602,25 @@ TEST(Relocalization, AnotherTownPassingEveryOtherCheckIsRefusedOnItsFreeSpace)
 	EXPECT_FALSE(checked[8].found) << "scan 17 placed (" << checked[8].reason << ")";
 	for (std::size_t i = 0; i < checked.size(); i++)
 		EXPECT_TRUE(!checked[i].found || unchecked[i].found) << "scan " << 9 + i;
+
+	// On the features, with 12 inliers enough: without the check (any share kept) scans 9
+	// and 17 are placed; with the shipped bound (0.05) scan 17 is refused, naming why.
+	const auto laxUnchecked = relocalize("\n    relocalization_max_conflicts: 1", "lax1", false);
+	ASSERT_EQ(laxUnchecked.size(), 9u);
+	for (const auto& l : laxUnchecked)
+		if (l.found)
+		{
+			EXPECT_EQ(l.reason, "ok");
+			EXPECT_GE(l.inliers, 12u);
+		}
+	EXPECT_TRUE(laxUnchecked[0].found);  // scan 9
+	EXPECT_TRUE(laxUnchecked[8].found);  // scan 17
+	const auto laxChecked = relocalize("", "lax", false);
+	ASSERT_EQ(laxChecked.size(), 9u);
+	EXPECT_FALSE(laxChecked[8].found);
+	EXPECT_EQ(laxChecked[8].reason, "free-space");
+	for (std::size_t i = 0; i < laxChecked.size(); i++)
+		EXPECT_TRUE(!laxChecked[i].found || laxUnchecked[i].found) << "scan " << 9 + i;
 }
 
 TEST(Relocalization, EvalRefusesAMalformedFileNamingIt)

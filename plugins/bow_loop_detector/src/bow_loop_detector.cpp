@@ -50,6 +50,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	ransac_.minInliers = p.getInt("min_inliers", 25);
 	ransac_.maxIterations = p.getInt("ransac_max_iterations", 1000);
 	relocMinInliers_ = p.getInt("relocalization_min_inliers", relocMinInliers_);
+	relocMaxConflicts_ = p.getDouble("relocalization_max_conflicts", relocMaxConflicts_);
 	groundMaxTilt_deg_ = p.getDouble("relocalization_max_tilt_deg", groundMaxTilt_deg_);
 	pointSigma_m_ = p.getDouble("point_sigma_m", pointSigma_m_);
 	canonicalYaw_ = p.getBool("canonical_yaw", canonicalYaw_);
@@ -79,7 +80,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	surfaceSearchMaxConflicts_ =
 	    p.getDouble("surface_search_max_conflicts", surfaceSearchMaxConflicts_);
 	freeSpace_ = features::FreeSpaceParams();
-	freeSpace_.minTop_m = p.getDouble("surface_search_min_top_m", 2.5);
+	freeSpace_.minTop_m = p.getDouble("free_space_min_top_m", 2.5);
 	planar_.yawStep_deg = p.getDouble("surface_search_yaw_step_deg", planar_.yawStep_deg);
 	planar_.range_m = icpRange_m_;
 	planar_.hypotheses = p.getInt("surface_search_hypotheses", planar_.hypotheses);
@@ -99,6 +100,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(ransac_.minInliers, 3, "min_inliers");  // a rigid fit takes 3 points
 	p.requireAtLeast(ransac_.maxIterations, 1, "ransac_max_iterations");
 	p.requireAtLeast(relocMinInliers_, 3, "relocalization_min_inliers");
+	p.requireRange(relocMaxConflicts_, 0, 1, "relocalization_max_conflicts");
 	p.requireRange(groundMaxTilt_deg_, 0, 180, "relocalization_max_tilt_deg");
 	p.requirePositive(pointSigma_m_, "point_sigma_m");
 	p.requireRange(directLevels_, 0, 8, "direct_index_levels_up");
@@ -125,7 +127,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireAtLeast(surfaceSearchMinInliers_, 3, "surface_search_min_inliers");
 	p.requireAtLeast(surfaceSearchMinAgreeing_, 0, "surface_search_min_agreeing");
 	p.requireRange(surfaceSearchMaxConflicts_, 0, 1, "surface_search_max_conflicts");
-	p.requireRange(freeSpace_.minTop_m, 0, 100, "surface_search_min_top_m");
+	p.requireRange(freeSpace_.minTop_m, 0, 100, "free_space_min_top_m");
 	p.requireRange(planar_.yawStep_deg, 0.1, 90, "surface_search_yaw_step_deg");
 	p.requireRange(planar_.hypotheses, 1, 64, "surface_search_hypotheses");
 

@@ -69,8 +69,9 @@ class BowLoopDetector : public LoopDetector
 		double groundD = 0;
 		/** direct_index_levels_up > 0: the vocabulary node of each feature. */
 		std::vector<uint32_t> groups;
-		/** icp_refine: makes the query's surface (its scan reduced to one point a voxel, its
-		 *  frame), when it has one; called only once a place is found. */
+		/** icp_refine or relocalization_max_conflicts: makes the query's surface (its scan
+		 *  reduced to one point a voxel, its frame), when it has one; called only once a
+		 *  place is fitted. */
 		std::function<std::vector<Eigen::Vector3f>()> surface;
 		/** polar_fusion: the query's polar contexts (of the index's dimensions; a place ranks
 		 *  by its best context against any of them); none: ranked by the words alone. */
@@ -135,8 +136,8 @@ class BowLoopDetector : public LoopDetector
 	double surfaceSearchMinOverlap_ = 0.2, surfaceSearchInlierRatio_ = 2.0;
 	int surfaceSearchMinInliers_ = 30, surfaceSearchMinAgreeing_ = 12;
 	double surfaceSearchMaxConflicts_ = 0.05;
-	/** The surface search's free-space check; configure() counts tall structure only
-	 *  (surface_search_min_top_m, 2.5 m): people and vehicles move between sessions. */
+	/** The free-space checks (surface search, relocalization_max_conflicts): tall structure only
+	 *  (free_space_min_top_m, 2.5 m): people and vehicles move between sessions. */
 	features::FreeSpaceParams freeSpace_;
 	features::PlanarSearchParams planar_;
 	bool icpRefine_ = false;
@@ -294,6 +295,9 @@ class BowLoopDetector : public LoopDetector
 	 *  decides nothing (a session is anchored by several agreeing ones) and another sensor's
 	 *  scans match a map with fewer. */
 	int relocMinInliers_ = 18;
+	/** relocalization_max_conflicts: a place found on the features is refused when more than
+	 *  this share of its free space conflicts (freeSpace_); 1: not checked. */
+	double relocMaxConflicts_ = 0.05;
 	/** A relocalization whose tilt differs from the ground planes' by more than this is
 	 *  refused; within it, the planes give the height. */
 	double groundMaxTilt_deg_ = 5.0;

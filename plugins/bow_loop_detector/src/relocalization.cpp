@@ -47,7 +47,7 @@ RelocalizationResult BowLoopDetector::relocalizeScan(const Scan& scan, const Ras
 	q.groundD = raster.groundD;
 	if (directLevels_ > 0)
 		q.groups = groupsOf(q.desc);
-	if (icpRefine_)
+	if (icpRefine_ || relocMaxConflicts_ < 1)
 		q.surface = [this, &scan] { return surfaceOf(scan); };
 	if (polarRelocalization_ && canFuse(&context))
 		q.contexts.push_back(contextOf(context.rings, context.sectors, context.cells.data()));
@@ -90,7 +90,7 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 	}
 	if (directLevels_ > 0)
 		q.groups = groupsOf(q.desc);
-	if (icpRefine_ && onlyKeyframe < 0)
+	if ((icpRefine_ || relocMaxConflicts_ < 1) && onlyKeyframe < 0)
 		q.surface = [&query] { return surfaceOf(query); };
 	// polar_fusion: the query's contexts (about the keyframe, or about each of them) rank the
 	// places too, when it was made with contexts of the index's dimensions.
@@ -148,6 +148,16 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 	res.reason = "inliers";
 	LocalMap::ConstPtr bestMap;
 	Eigen::Isometry3d bestT = Eigen::Isometry3d::Identity();
+	// The query's surface, made once when first needed.
+	std::optional<std::vector<Eigen::Vector3f>> querySurface;
+	const auto surfaceOfQuery = [&]() -> const std::vector<Eigen::Vector3f>&
+	{
+		if (!querySurface)
+			querySurface = q.surface();
+		return *querySurface;
+	};
+	const bool judgeFreeSpace =
+	    q.surface && (relocMaxConflicts_ < 1 || getMinLoggingLevel() <= mrpt::system::LVL_DEBUG);
 	for (auto& r : candidates)
 	{
 		const auto it = map.localMaps.find(r.localMap);
@@ -191,6 +201,29 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 				}
 				continue;
 			}
+			if (judgeFreeSpace)
+			{
+				// A place of another town can fit as many features as a true one, but its walls
+				// and poles stand where the query saw bare ground (and the other way).
+				const auto free =
+				    features::freeSpaceConflicts(surfaceOfQuery(), surfaceOf(lm), *T, freeSpace_);
+				const bool refused = free.share() > relocMaxConflicts_;
+				MRPT_LOG_DEBUG_FMT(
+				    "features fit local map %llu: %zu inliers, free-space conflicts %zu of %zu "
+				    "(%.3f): %s",
+				    static_cast<unsigned long long>(lm.id), fit.inliers.size(), free.conflicts,
+				    free.compared, free.share(), refused ? "refused" : "kept");
+				if (refused)
+				{
+					if (!res.found)
+					{
+						res.reason = "free-space";
+						res.score = std::max(res.score, score);
+						res.inliers = std::max(res.inliers, fit.inliers.size());
+					}
+					continue;
+				}
+			}
 			res.found = true;
 			res.reason = "ok";
 			res.localMap = lm.id;
@@ -205,7 +238,10 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		}
 		else if (!res.found)
 		{
-			res.reason = "inliers";
+			// A fit refused on its ground or free space went further than one with too few
+			// inliers: the reason stays the farthest reached.
+			if (res.reason != "ground" && res.reason != "free-space")
+				res.reason = "inliers";
 			res.score = std::max(res.score, score);
 			res.inliers = std::max(res.inliers, fit.inliers.size());
 		}
@@ -216,7 +252,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		// too few descriptors, while their surfaces still overlap. The best-scored candidates
 		// are aligned on the surfaces with no prior; the features, matched only near where an
 		// alignment puts them, then decide.
-		const auto surface = q.surface();
+		const auto& surface = surfaceOfQuery();
 		int tried = 0;
 		for (auto& r : candidates)
 		{
@@ -306,7 +342,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			return res;
 		}
 	}
-	if (bestMap && q.surface && refineOnSurface(q.surface(), *bestMap, bestT))
+	if (bestMap && q.surface && icpRefine_ && refineOnSurface(surfaceOfQuery(), *bestMap, bestT))
 	{
 		res.keyframe = nearestKeyframe(*bestMap, bestT, poses);
 		// Height from the two ground planes again, as before the refinement: on the rendered
@@ -317,18 +353,6 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		res.keyframeStamp = map.keyframes.at(res.keyframe)->stamp;
 		res.keyframePose = poses.at(res.keyframe);
 		res.pose = poses.at(bestMap->anchor()) + toPose(bestT);
-	}
-	if (bestMap && q.surface && getMinLoggingLevel() <= mrpt::system::LVL_DEBUG)
-	{
-		// What the surface search's free-space check would say of a place found on the
-		// features (measured, not applied: see surface_search_max_conflicts).
-		const auto free =
-		    features::freeSpaceConflicts(q.surface(), surfaceOf(*bestMap), bestT, freeSpace_);
-		MRPT_LOG_DEBUG_FMT(
-		    "relocalized on the features on local map %llu: %zu inliers, free-space conflicts "
-		    "%zu of %zu (%.3f)",
-		    static_cast<unsigned long long>(bestMap->id), res.inliers, free.conflicts,
-		    free.compared, free.share());
 	}
 	return res;
 }
