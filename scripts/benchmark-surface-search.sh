@@ -46,6 +46,8 @@ lax() {
     mc != "" && /class: rasterslam::BowLoopDetector/ {lp=1}
     lp && /^  params:/ {print "    relocalization_max_conflicts: " mc; lp=0}' "$1" > "$2"
   grep -q "relocalization_min_inliers: 12" "$2" || { echo "benchmark-surface-search: could not make $2 lax" >&2; exit 1; }
+  [ -z "${3:-}" ] || grep -q "relocalization_max_conflicts: $3" "$2" ||
+    { echo "benchmark-surface-search: could not set relocalization_max_conflicts in $2" >&2; exit 1; }
 }
 lax off.yaml lax.yaml
 lax off.yaml lax-unchecked.yaml 1
@@ -69,7 +71,8 @@ relocalize() {
   shift 4
   t0=$(date +%s.%N)
   /usr/bin/time -f "%M" -o "$name.mem" "$bin/rasterslam" relocalize --map "$map" --rawlog "$rawlog" --out "$name" \
-    --config "$cfg" --verbose "$@" > "$name.log" 2>&1
+    --config "$cfg" --verbose "$@" > "$name.log" 2>&1 ||
+    { tail -5 "$name.log" >&2; echo "benchmark-surface-search: relocalize $name failed" >&2; return 1; }
   t1=$(date +%s.%N)
   awk -v a="$t0" -v b="$t1" -v m="$(cat "$name.mem")" 'BEGIN {printf "%.1f s, peak %.0f MB", b - a, m / 1024}'
 }
@@ -92,7 +95,9 @@ for mode in off on lax-unchecked lax; do
     off|on) echo "== surface search $mode" ;;
     *) echo "== surface search off, relocalization_min_inliers 12, $mode" ;;
   esac
-  echo "KITTI street, 160 rendered scans against the map of its first 51 ($(relocalize "k-$mode" kmap q.rawlog $mode.yaml)):"
+  # (each relocalize assigned on its own: under set -e a failure there stops the script)
+  took="$(relocalize "k-$mode" kmap q.rawlog $mode.yaml)"
+  echo "KITTI street, 160 rendered scans against the map of its first 51 ($took):"
   "$bin/rasterslam-eval" reloc --reloc "k-$mode/relocalization.txt" --gt q.tum --map-gt krun/groundtruth.tum \
     --map-est krun/trajectory.tum
   shares "k-$mode"

@@ -560,6 +560,7 @@ TEST(Relocalization, AnotherTownPassingEveryOtherCheckIsRefusedOnItsFreeSpace)
 	                     test::sourcePath("rawlogs/town-loop.yaml") +
 	                     " --seed 1001 --scans 18 --compress 0 -o " + other);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
+	std::string lastOutput;  // of the last relocalize
 	const auto relocalize =
 	    [&](const std::string& extra, const std::string& out, bool surface = true)
 	{
@@ -575,11 +576,13 @@ TEST(Relocalization, AnotherTownPassingEveryOtherCheckIsRefusedOnItsFreeSpace)
 		    yaml, std::regex("\n    min_score:"),
 		    std::string(surface ? "\n    relocalization_surface_search: true" : "") + extra +
 		        "\n    min_score:");
+		lastOutput.clear();
 		const auto rr = test::runCommand(test::bin("rasterslam") +
 		                                 " relocalize --quiet --first 9 --last 17 --map " +
 		                                 (dir / "map").string() + " --config " + cfg.string() +
 		                                 " --rawlog " + other + " --out " + (dir / out).string());
 		EXPECT_EQ(rr.exitCode, 0) << rr.output;
+		lastOutput = rr.output;
 		return readReloc(dir / out / "relocalization.txt");
 	};
 	// Without the free-space check (any share taken): scans 9 and 17 are placed, on the
@@ -619,6 +622,12 @@ TEST(Relocalization, AnotherTownPassingEveryOtherCheckIsRefusedOnItsFreeSpace)
 	ASSERT_EQ(laxChecked.size(), 9u);
 	EXPECT_FALSE(laxChecked[8].found);
 	EXPECT_EQ(laxChecked[8].reason, "free-space");
+	// The summary counts the scans not placed by reason.
+	EXPECT_NE(lastOutput.find("rasterslam: relocalized 1 of 9 scans (not placed: "),
+	          std::string::npos)
+	    << lastOutput;
+	EXPECT_TRUE(std::regex_search(lastOutput, std::regex("(: |, )1 free-space(, |\\))")))
+	    << lastOutput;
 	for (std::size_t i = 0; i < laxChecked.size(); i++)
 		EXPECT_TRUE(!laxChecked[i].found || laxUnchecked[i].found) << "scan " << 9 + i;
 }

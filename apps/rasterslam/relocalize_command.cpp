@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <iostream>
+#include <map>
 
 #include "cli.h"
 
@@ -35,7 +36,8 @@ Command addRelocalizeCommand(CLI::App& app)
 	    "Writes DIR2/relocalization.txt: a line a scan with stamp, status, reason (ok, "
 	    "surface: aligned on the surfaces, then verified on the features within that alignment's "
 	    "gate, with loop_detector.relocalization_surface_search, "
-	    "features, candidates, score, inliers, ground), the map's local map and keyframe ids, "
+	    "features, candidates, score, inliers, ground, free-space: the fit's walls and poles "
+	    "stand where the other side saw bare ground), the map's local map and keyframe ids, "
 	    "the keyframe's stamp, the BOW score normalized by what the scan's two halves score "
 	    "against each other (candidates under the loop detector's min_score are not "
 	    "verified), inliers, and the pose x y z qx qy qz qw in the map frame.");
@@ -94,6 +96,7 @@ int relocalizeCommand(const RelocalizeArgs& args)
 		    "# stamp status reason local_map keyframe keyframe_stamp score inliers x y z qx qy qz "
 		    "qw\n";
 		std::size_t n = 0, found = 0;
+		std::map<std::string, std::size_t> missed;  // scans not placed, by reason
 		RasterFrame raster;
 		while (auto scan = src.next())
 		{
@@ -115,9 +118,17 @@ int relocalizeCommand(const RelocalizeArgs& args)
 			    q.x(), q.y(), q.z(), q.quat().x(), q.quat().y(), q.quat().z(), q.quat().r());
 			++n;
 			found += r.found;
+			if (!r.found)
+				++missed[r.reason];
 		}
 		io::writeFileAtomically((fs::path(outDir) / "relocalization.txt").string(), txt);
-		std::printf("rasterslam: relocalized %zu of %zu scans; results in %s\n", found, n,
+		std::string why;
+		for (const auto& [reason, count] : missed)
+			why += (why.empty() ? " (not placed: " : ", ") + std::to_string(count) + " " + reason;
+		if (!why.empty())
+			why += ")";
+		std::printf("rasterslam: relocalized %zu of %zu scans%s; results in %s\n", found, n,
+		            why.c_str(),
 		            (fs::path(outDir) / "relocalization.txt").lexically_normal().c_str());
 		if (!src.stopReason().empty())
 		{

@@ -186,7 +186,9 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		const auto& lm = *data;
 		const auto fit =
 		    verify(q, lm, static_cast<uint32_t>(seed + lm.id), kAllKeyframes, relocMinInliers_);
-		if (fit.ok && fit.inliers.size() > res.inliers)
+		// Compared with the best place taken only: a fit refused on its ground or free space
+		// (res.inliers reports it) must not hide a right place of fewer inliers after it.
+		if (fit.ok && fit.inliers.size() > (res.found ? res.inliers : 0))
 		{
 			const uint64_t kf = nearestKeyframe(lm, fit.T, poses);
 			double tilt = 0;
