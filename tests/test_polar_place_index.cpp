@@ -267,28 +267,35 @@ TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
 	EXPECT_FALSE(locate(fused + "polar_max_distance: 0.05\n", {}).found);
 }
 
-TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
+namespace
 {
-	// A real scan (KITTI-05 frame 540) relocalized with no prior, with the map manager's
-	// context of it (loop_detector.polar_relocalization): the true place (local map 1) holds
-	// the scan's features and context and an image sharing 30 of its words; three distractors
-	// hold an image of all its words, other features and no contexts. Only the first
-	// max_candidates + 1 candidates are verified.
-	RASTERSLAM_REQUIRE_SHARED_DATA();
+/** A real scan (KITTI-05 frame 540), its elevation image, and the place it was made at:
+ *  local map 1 of keyframe 100 holding the features the detector extracts from the image
+ *  (its query_features, 3,000) at the points behind them, and the scan's context as
+ *  LocalMapManager::placeContextOf makes it. */
+struct RealPlace
+{
 	Scan scan;
+	RasterFrame raster;
+	LocalMap::Ptr truth;
+	PlaceContext context;
+};
+
+RealPlace realPlace()
+{
+	RealPlace r;
+	Scan& scan = r.scan;
 	scan.index = 540;
 	scan.points = io::loadKittiBin(test::sharedData("kitti05-revisit-0540-1319/000540.bin"));
 	PluginLoader::instance().load();
 	auto rasterizer =
 	    PluginLoader::instance().create<Rasterizer>("rasterslam::ElevationRasterizer");
-	ASSERT_TRUE(rasterizer);
+	if (!rasterizer)
+		throw std::runtime_error("no rasterslam::ElevationRasterizer plugin");
 	rasterizer->initialize(yaml::Map());
-	RasterFrame raster;
+	RasterFrame& raster = r.raster;
 	rasterizer->rasterize(scan, raster);
 
-	// The features the detector extracts from the scan's image (its query_features, 3,000),
-	// at the points behind them, and the scan's context as LocalMapManager::placeContextOf
-	// makes it: the true place seen from the scan's own pose.
 	features::OrbParams orbParams;
 	orbParams.numFeatures = 3000;
 	features::OrbExtractor orb(orbParams);
@@ -309,10 +316,9 @@ TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
 		truth->descriptors.insert(truth->descriptors.end(), desc.ptr<uint8_t>(i),
 		                          desc.ptr<uint8_t>(i) + 32);
 	}
-	ASSERT_GE(truth->points(), 300u) << "too few features on the real scan";
 	std::vector<PointXYZI> imagePts;
 	raster::appendImagePoints(raster, scan.points, imagePts);
-	PlaceContext context;
+	PlaceContext& context = r.context;
 	context.rings = 10;
 	context.sectors = 60;
 	context.cells =
@@ -320,7 +326,22 @@ TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
 	truth->contextRings = context.rings;
 	truth->contextSectors = context.sectors;
 	truth->contextCells = context.cells;
+	r.truth = truth;
+	return r;
+}
+}  // namespace
 
+TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
+{
+	// The real scan relocalized with no prior, with the map manager's context of it
+	// (loop_detector.polar_relocalization): the true place (local map 1) holds the scan's
+	// features and context and an image sharing 30 of its words; three distractors hold an
+	// image of all its words, other features and no contexts. Only the first
+	// max_candidates + 1 candidates are verified.
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto place = realPlace();
+	const auto& [scan, raster, truth, context] = place;
+	ASSERT_GE(truth->points(), 300u) << "too few features on the real scan";
 	const auto lms = withDistractors(truth);
 	const Map map = mapOfAnchors(lms);
 	PoseView poses;
@@ -358,4 +379,69 @@ TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
 	other.sectors = 30;
 	other.cells.resize(10 * 30);
 	EXPECT_FALSE(relocalize(two + "polar_fusion: true\n" + byContext, other).found);
+}
+
+TEST(PolarPlaceIndex, AFitRefusedOnItsGroundDoesNotHideAPlaceVerifiedAfterIt)
+{
+	// Two places for the real scan. Local map 2 holds all of the scan's features and an image
+	// of all its words (ranked first), but its keyframe's ground plane stands 20 degrees off
+	// the scan's: its fit is refused on the ground. Local map 1, the true place, holds two
+	// thirds of the features (its fit has fewer inliers) and an image sharing 30 words.
+	RASTERSLAM_REQUIRE_SHARED_DATA();
+	const auto place = realPlace();
+	const auto& [scan, raster, all, context] = place;
+	ASSERT_TRUE(raster.groundValid);
+	ASSERT_GE(all->points(), 300u) << "too few features on the real scan";
+	auto decoy = std::make_shared<LocalMap>(*all);
+	decoy->id = 2;
+	decoy->keyframes = {200};
+	auto truth = std::make_shared<LocalMap>(*all);
+	const std::size_t kept = all->points() * 2 / 3;
+	truth->xyz.resize(3 * kept);
+	truth->observers.resize(kept);
+	truth->descriptors.resize(32 * kept);
+	const Map map = mapOfAnchors({truth, decoy});
+	auto& decoyFrame = *map.keyframes.at(200);
+	const Eigen::Vector3f level(raster.groundNormal[0], raster.groundNormal[1],
+	                            raster.groundNormal[2]);
+	const auto setGround = [&](const Eigen::Vector3f& n)
+	{
+		decoyFrame.groundValid = true;
+		for (int i = 0; i < 3; i++)
+			decoyFrame.groundN[i] = n[i];
+		decoyFrame.groundD = raster.groundD;
+	};
+	setGround(Eigen::AngleAxisf(20.f * static_cast<float>(M_PI) / 180.f, Eigen::Vector3f::UnitX()) *
+	          level);
+	PoseView poses;
+	poses.prior = &map.priorPoses;
+	const std::vector<uint8_t> few(all->descriptors.begin(), all->descriptors.begin() + 32 * 30);
+	const auto relocalize = [&](bool withTruth)
+	{
+		auto d = makeDetector("min_score: 0\nmax_candidates: 1\n");
+		if (withTruth)
+			d->index(*truth, few);
+		d->index(*decoy, all->descriptors);
+		return d->relocalizeScan(scan, raster, context, map, poses);
+	};
+	// The decoy alone: refused on its ground, the result naming how far it got.
+	const auto decoyOnly = relocalize(false);
+	EXPECT_FALSE(decoyOnly.found);
+	EXPECT_EQ(decoyOnly.reason, "ground");
+	EXPECT_GE(decoyOnly.inliers, 100u);
+	// Both: the true place, verified after the refused fit with fewer inliers, is taken at the
+	// scan's own pose.
+	const auto both = relocalize(true);
+	ASSERT_TRUE(both.found) << both.reason;
+	EXPECT_EQ(both.reason, "ok");
+	EXPECT_EQ(both.localMap, 1u);
+	EXPECT_EQ(both.keyframe, 100u);
+	EXPECT_LT(both.inliers, decoyOnly.inliers);
+	EXPECT_LT(both.pose.norm(), 0.05);
+	// Its ground level with the scan's, the decoy holds more inliers and is taken.
+	setGround(level);
+	const auto level2 = relocalize(true);
+	ASSERT_TRUE(level2.found) << level2.reason;
+	EXPECT_EQ(level2.localMap, 2u);
+	EXPECT_GT(level2.inliers, both.inliers);
 }

@@ -158,6 +158,21 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 	};
 	const bool judgeFreeSpace =
 	    q.surface && (relocMaxConflicts_ < 1 || getMinLoggingLevel() <= mrpt::system::LVL_DEBUG);
+	// While nothing is placed, the result says how far the candidates got: a fit refused on
+	// its ground or free space went further than one with too few inliers, and a later
+	// candidate that gets less far does not overwrite its reason.
+	const auto notPlaced = [&res](const char* reason, double score, std::size_t inliers)
+	{
+		if (res.found)
+			return;
+		const auto reach = [](const std::string& r) {
+			return r == "ground" || r == "free-space" ? 2 : r == "inliers" ? 1 : 0;
+		};
+		if (reach(reason) >= reach(res.reason))
+			res.reason = reason;
+		res.score = std::max(res.score, score);
+		res.inliers = std::max(res.inliers, inliers);
+	};
 	for (auto& r : candidates)
 	{
 		const auto it = map.localMaps.find(r.localMap);
@@ -195,12 +210,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			const auto T = groundAligned(q, lm, kf, fit.T, map, poses, &tilt);
 			if (!T)
 			{
-				if (!res.found)
-				{
-					res.reason = "ground";
-					res.score = std::max(res.score, score);
-					res.inliers = std::max(res.inliers, fit.inliers.size());
-				}
+				notPlaced("ground", score, fit.inliers.size());
 				continue;
 			}
 			if (judgeFreeSpace)
@@ -217,12 +227,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 				    free.compared, free.share(), refused ? "refused" : "kept");
 				if (refused)
 				{
-					if (!res.found)
-					{
-						res.reason = "free-space";
-						res.score = std::max(res.score, score);
-						res.inliers = std::max(res.inliers, fit.inliers.size());
-					}
+					notPlaced("free-space", score, fit.inliers.size());
 					continue;
 				}
 			}
@@ -238,15 +243,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			bestMap = data;
 			bestT = *T;
 		}
-		else if (!res.found)
-		{
-			// A fit refused on its ground or free space went further than one with too few
-			// inliers: the reason stays the farthest reached.
-			if (res.reason != "ground" && res.reason != "free-space")
-				res.reason = "inliers";
-			res.score = std::max(res.score, score);
-			res.inliers = std::max(res.inliers, fit.inliers.size());
-		}
+		else
+			notPlaced("inliers", score, fit.inliers.size());
 	}
 	if (!res.found && surfaceSearch_ && q.surface)
 	{
