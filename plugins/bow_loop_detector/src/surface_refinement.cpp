@@ -5,6 +5,7 @@
 // depend on the side they are seen from.
 #include <mrpt/system/crc.h>
 
+#include <algorithm>
 #include <chrono>
 #include <unordered_set>
 
@@ -52,9 +53,15 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 	const auto t1 = std::chrono::steady_clock::now();
 	std::lock_guard<std::mutex> lock(targetsMutex_);
 	const auto tgt = targetOf(lm);
-	// From a peak of the search (a cell and a yaw step off) ICP first reaches farther.
+	// From a peak of the search (a cell and a yaw step off) ICP first reaches farther, on the
+	// query's surface in voxels twice as large and stopped at steps of a centimetre and 0.05
+	// deg: the second stage, at the full resolution, gives the pose.
 	auto coarse = icp_;
 	coarse.maxCorrespondence_m = std::max(icp_.maxCorrespondence_m, 3 * planar_.cell_m);
+	coarse.voxel_m = 2 * icp_.voxel_m;
+	coarse.convergedTranslation_m = 0.01;
+	coarse.convergedRotation_rad = 0.05 * M_PI / 180;
+	const auto coarseSurface = features::voxelDownsample(surface, coarse.voxel_m);
 	// The overlap is counted over the query's points that land where the local map has
 	// points (its footprint, 2 m cells): a query beyond the end of the mapped street is not
 	// to score less than one pulled over the map, where its own surroundings do not fit.
@@ -70,10 +77,26 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 	for (const auto& p : target)
 		footprint.insert(key(p.x(), p.y()));
 	const auto reduced = features::voxelDownsample(surface, icp_.voxel_m);
+	// Peaks that the first stage takes to the same pose would end at the same alignment.
+	std::vector<Eigen::Isometry3d> reached;
+	int coarseIterations = 0, fineIterations = 0;
 	for (const auto& h : hyps)
 	{
-		const auto r0 = features::icpPointToPlane(surface, *tgt, h.T, coarse);
-		const auto r = features::icpPointToPlane(surface, *tgt, r0.T, icp_);
+		const auto r0 = features::icpPointToPlane(coarseSurface, *tgt, h.T, coarse);
+		coarseIterations += r0.iterations;
+		const bool again =
+		    std::any_of(reached.begin(), reached.end(),
+		                [&r0](const Eigen::Isometry3d& x)
+		                {
+			                const Eigen::Isometry3d d = x.inverse() * r0.T;
+			                return d.translation().norm() < 0.1 &&
+			                       Eigen::AngleAxisd(d.linear()).angle() < 0.5 * M_PI / 180;
+		                });
+		if (again)
+			continue;
+		reached.push_back(r0.T);
+		const auto r = features::icpPointToPlane(reduced, *tgt, r0.T, icp_);
+		fineIterations += r.iterations;
 		std::size_t inside = 0;
 		for (const auto& p : reduced)
 		{
@@ -89,10 +112,11 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 	          [](const SurfaceAlignment& a, const SurfaceAlignment& b)
 	          { return a.overlap > b.overlap; });
 	MRPT_LOG_DEBUG_FMT(
-	    "surface search on local map %llu: %zu of %zu alignments reach the overlap, best %.3f; "
-	    "%.1f + %.1f ms",
+	    "surface search on local map %llu: %zu of %zu alignments reach the overlap, best %.3f "
+	    "(%zu peaks refined, any other ending where one did; %d + %d ICP iterations); %.1f + "
+	    "%.1f ms",
 	    static_cast<unsigned long long>(lm.id), fits.size(), hyps.size(),
-	    fits.empty() ? 0.0 : fits.front().overlap,
+	    fits.empty() ? 0.0 : fits.front().overlap, reached.size(), coarseIterations, fineIterations,
 	    std::chrono::duration<double, std::milli>(t1 - t0).count(),
 	    std::chrono::duration<double, std::milli>(t2 - t1).count());
 	return fits;
