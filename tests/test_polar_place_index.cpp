@@ -340,7 +340,10 @@ TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
 	// max_candidates + 1 candidates are verified.
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto place = realPlace();
-	const auto& [scan, raster, truth, context] = place;
+	const Scan& scan = place.scan;
+	const RasterFrame& raster = place.raster;
+	const LocalMap::Ptr& truth = place.truth;
+	const PlaceContext& context = place.context;
 	ASSERT_GE(truth->points(), 300u) << "too few features on the real scan";
 	const auto lms = withDistractors(truth);
 	const Map map = mapOfAnchors(lms);
@@ -389,7 +392,10 @@ TEST(PolarPlaceIndex, AFitRefusedOnItsGroundDoesNotHideAPlaceVerifiedAfterIt)
 	// thirds of the features (its fit has fewer inliers) and an image sharing 30 words.
 	RASTERSLAM_REQUIRE_SHARED_DATA();
 	const auto place = realPlace();
-	const auto& [scan, raster, all, context] = place;
+	const Scan& scan = place.scan;
+	const RasterFrame& raster = place.raster;
+	const LocalMap::Ptr& all = place.truth;
+	const PlaceContext& context = place.context;
 	ASSERT_TRUE(raster.groundValid);
 	ASSERT_GE(all->points(), 300u) << "too few features on the real scan";
 	auto decoy = std::make_shared<LocalMap>(*all);
@@ -400,7 +406,7 @@ TEST(PolarPlaceIndex, AFitRefusedOnItsGroundDoesNotHideAPlaceVerifiedAfterIt)
 	truth->xyz.resize(3 * kept);
 	truth->observers.resize(kept);
 	truth->descriptors.resize(32 * kept);
-	const Map map = mapOfAnchors({truth, decoy});
+	Map map = mapOfAnchors({truth, decoy});
 	auto& decoyFrame = *map.keyframes.at(200);
 	const Eigen::Vector3f level(raster.groundNormal[0], raster.groundNormal[1],
 	                            raster.groundNormal[2]);
@@ -437,6 +443,8 @@ TEST(PolarPlaceIndex, AFitRefusedOnItsGroundDoesNotHideAPlaceVerifiedAfterIt)
 	EXPECT_EQ(both.localMap, 1u);
 	EXPECT_EQ(both.keyframe, 100u);
 	EXPECT_LT(both.inliers, decoyOnly.inliers);
+	// The decoy is verified first (its words score higher): the refused fit came before.
+	EXPECT_GT(decoyOnly.score, both.score);
 	EXPECT_LT(both.pose.norm(), 0.05);
 	// Its ground level with the scan's, the decoy holds more inliers and is taken.
 	setGround(level);

@@ -158,18 +158,20 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 	};
 	const bool judgeFreeSpace =
 	    q.surface && (relocMaxConflicts_ < 1 || getMinLoggingLevel() <= mrpt::system::LVL_DEBUG);
-	// While nothing is placed, the result says how far the candidates got: a fit refused on
-	// its ground or free space went further than one with too few inliers, and a later
-	// candidate that gets less far does not overwrite its reason.
-	const auto notPlaced = [&res](const char* reason, double score, std::size_t inliers)
+	// While nothing is placed, the result says how far the candidates got: refused on its
+	// score (0), verified with too few inliers (1), refused on its ground or free space (2).
+	// A later candidate that gets less far does not overwrite the reason.
+	int reached = -1;
+	const auto notPlaced =
+	    [&res, &reached](const char* reason, int reach, double score, std::size_t inliers)
 	{
 		if (res.found)
 			return;
-		const auto reach = [](const std::string& r) {
-			return r == "ground" || r == "free-space" ? 2 : r == "inliers" ? 1 : 0;
-		};
-		if (reach(reason) >= reach(res.reason))
+		if (reach >= reached)
+		{
 			res.reason = reason;
+			reached = reach;
+		}
 		res.score = std::max(res.score, score);
 		res.inliers = std::max(res.inliers, inliers);
 	};
@@ -188,11 +190,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		    polarMaxDistance_ > 0 && r.polarDistance >= 0 && r.polarDistance <= polarMaxDistance_;
 		if (score < minScore_ && !closeContext)
 		{
-			if (!res.found && res.inliers == 0)
-			{
-				res.reason = "score";
-				res.score = std::max(res.score, score);
-			}
+			notPlaced("score", 0, score, 0);
 			continue;
 		}
 		const auto data = candidate(map, it->first);  // offline: read from the store
@@ -210,7 +208,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			const auto T = groundAligned(q, lm, kf, fit.T, map, poses, &tilt);
 			if (!T)
 			{
-				notPlaced("ground", score, fit.inliers.size());
+				notPlaced("ground", 2, score, fit.inliers.size());
 				continue;
 			}
 			if (judgeFreeSpace)
@@ -227,7 +225,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 				    free.compared, free.share(), refused ? "refused" : "kept");
 				if (refused)
 				{
-					notPlaced("free-space", score, fit.inliers.size());
+					notPlaced("free-space", 2, score, fit.inliers.size());
 					continue;
 				}
 			}
@@ -244,7 +242,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			bestT = *T;
 		}
 		else
-			notPlaced("inliers", score, fit.inliers.size());
+			notPlaced("inliers", 1, score, fit.inliers.size());
 	}
 	if (!res.found && surfaceSearch_ && q.surface)
 	{

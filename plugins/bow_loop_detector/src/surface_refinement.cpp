@@ -77,9 +77,10 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 	for (const auto& p : target)
 		footprint.insert(key(p.x(), p.y()));
 	const auto reduced = features::voxelDownsample(surface, icp_.voxel_m);
-	// Peaks that the first stage takes to the same pose would end at the same alignment.
+	// Peaks that the first stage takes to where an earlier one's went, refined to a converged
+	// alignment, would end at the same alignment.
 	std::vector<Eigen::Isometry3d> reached;
-	int coarseIterations = 0, fineIterations = 0;
+	int coarseIterations = 0, fineIterations = 0, refined = 0;
 	for (const auto& h : hyps)
 	{
 		const auto r0 = features::icpPointToPlane(coarseSurface, *tgt, h.T, coarse);
@@ -94,9 +95,11 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 		                });
 		if (again)
 			continue;
-		reached.push_back(r0.T);
 		const auto r = features::icpPointToPlane(reduced, *tgt, r0.T, icp_);
 		fineIterations += r.iterations;
+		refined++;
+		if (r.converged)  // else a later peak reaching the same pose is tried again
+			reached.push_back(r0.T);
 		std::size_t inside = 0;
 		for (const auto& p : reduced)
 		{
@@ -113,10 +116,10 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 	          { return a.overlap > b.overlap; });
 	MRPT_LOG_DEBUG_FMT(
 	    "surface search on local map %llu: %zu of %zu alignments reach the overlap, best %.3f "
-	    "(%zu peaks refined, any other ending where one did; %d + %d ICP iterations); %.1f + "
+	    "(%d peaks refined, any other ending where one did; %d + %d ICP iterations); %.1f + "
 	    "%.1f ms",
 	    static_cast<unsigned long long>(lm.id), fits.size(), hyps.size(),
-	    fits.empty() ? 0.0 : fits.front().overlap, reached.size(), coarseIterations, fineIterations,
+	    fits.empty() ? 0.0 : fits.front().overlap, refined, coarseIterations, fineIterations,
 	    std::chrono::duration<double, std::milli>(t1 - t0).count(),
 	    std::chrono::duration<double, std::milli>(t2 - t1).count());
 	return fits;
