@@ -269,22 +269,24 @@ TEST(PolarPlaceIndex, LocateVerifiesThePlaceTheContextsRankWhereTheWordsMissIt)
 
 namespace
 {
-/** A real scan (KITTI-05 frame 540), its elevation image, and the place it was made at:
+/** Tests on a real scan (KITTI-05 frame 540), its elevation image, and the place it was made at:
  *  local map 1 of keyframe 100 holding the features the detector extracts from the image
  *  (its query_features, 3,000) at the points behind them, and the scan's context as
  *  LocalMapManager::placeContextOf makes it. */
-struct RealPlace
+class PolarPlaceIndexOnARealScan : public ::testing::Test
 {
+   protected:
+	void SetUp() override;
+
 	Scan scan;
 	RasterFrame raster;
 	LocalMap::Ptr truth;
 	PlaceContext context;
 };
 
-RealPlace realPlace()
+void PolarPlaceIndexOnARealScan::SetUp()
 {
-	RealPlace r;
-	Scan& scan = r.scan;
+	RASTERSLAM_REQUIRE_SHARED_DATA();
 	scan.index = 540;
 	scan.points = io::loadKittiBin(test::sharedData("kitti05-revisit-0540-1319/000540.bin"));
 	PluginLoader::instance().load();
@@ -293,7 +295,6 @@ RealPlace realPlace()
 	if (!rasterizer)
 		throw std::runtime_error("no rasterslam::ElevationRasterizer plugin");
 	rasterizer->initialize(yaml::Map());
-	RasterFrame& raster = r.raster;
 	rasterizer->rasterize(scan, raster);
 
 	features::OrbParams orbParams;
@@ -302,7 +303,7 @@ RealPlace realPlace()
 	std::vector<cv::KeyPoint> kps;
 	cv::Mat desc;
 	orb.extract(raster.image.asCvMatRef(), kps, desc);
-	auto truth = std::make_shared<LocalMap>();
+	truth = std::make_shared<LocalMap>();
 	truth->id = 1;
 	truth->keyframes = {100};
 	for (int i = 0; i < static_cast<int>(kps.size()); i++)
@@ -318,7 +319,6 @@ RealPlace realPlace()
 	}
 	std::vector<PointXYZI> imagePts;
 	raster::appendImagePoints(raster, scan.points, imagePts);
-	PlaceContext& context = r.context;
 	context.rings = 10;
 	context.sectors = 60;
 	context.cells =
@@ -326,24 +326,16 @@ RealPlace realPlace()
 	truth->contextRings = context.rings;
 	truth->contextSectors = context.sectors;
 	truth->contextCells = context.cells;
-	r.truth = truth;
-	return r;
 }
 }  // namespace
 
-TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
+TEST_F(PolarPlaceIndexOnARealScan, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
 {
 	// The real scan relocalized with no prior, with the map manager's context of it
 	// (loop_detector.polar_relocalization): the true place (local map 1) holds the scan's
 	// features and context and an image sharing 30 of its words; three distractors hold an
 	// image of all its words, other features and no contexts. Only the first
 	// max_candidates + 1 candidates are verified.
-	RASTERSLAM_REQUIRE_SHARED_DATA();
-	const auto place = realPlace();
-	const Scan& scan = place.scan;
-	const RasterFrame& raster = place.raster;
-	const LocalMap::Ptr& truth = place.truth;
-	const PlaceContext& context = place.context;
 	ASSERT_GE(truth->points(), 300u) << "too few features on the real scan";
 	const auto lms = withDistractors(truth);
 	const Map map = mapOfAnchors(lms);
@@ -384,18 +376,13 @@ TEST(PolarPlaceIndex, RelocalizeScanVerifiesThePlaceTheScanContextRanks)
 	EXPECT_FALSE(relocalize(two + "polar_fusion: true\n" + byContext, other).found);
 }
 
-TEST(PolarPlaceIndex, AFitRefusedOnItsGroundDoesNotHideAPlaceVerifiedAfterIt)
+TEST_F(PolarPlaceIndexOnARealScan, AFitRefusedOnItsGroundDoesNotHideAPlaceVerifiedAfterIt)
 {
 	// Two places for the real scan. Local map 2 holds all of the scan's features and an image
 	// of all its words (ranked first), but its keyframe's ground plane stands 20 degrees off
 	// the scan's: its fit is refused on the ground. Local map 1, the true place, holds two
 	// thirds of the features (its fit has fewer inliers) and an image sharing 30 words.
-	RASTERSLAM_REQUIRE_SHARED_DATA();
-	const auto place = realPlace();
-	const Scan& scan = place.scan;
-	const RasterFrame& raster = place.raster;
-	const LocalMap::Ptr& all = place.truth;
-	const PlaceContext& context = place.context;
+	const LocalMap::Ptr& all = truth;
 	ASSERT_TRUE(raster.groundValid);
 	ASSERT_GE(all->points(), 300u) << "too few features on the real scan";
 	auto decoy = std::make_shared<LocalMap>(*all);

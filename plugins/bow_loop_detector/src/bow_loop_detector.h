@@ -26,6 +26,14 @@
 
 namespace rasterslam
 {
+/** Whether b lies within m metres and deg degrees of a (the motion a^-1 b). */
+inline bool withinPose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double m, double deg)
+{
+	const Eigen::Isometry3d d = a.inverse() * b;
+	return d.translation().norm() <= m &&
+	       Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI <= deg;
+}
+
 /** The paper's loop closure as a query service over the map: a BOW database of local-map
  *  images (its place index), candidate search, and geometric verification of a keyframe's
  *  features against a candidate local map's points. It holds no keyframe and no map. */

@@ -103,9 +103,7 @@ std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, cons
 		}
 		// The registration must agree with the prediction: the gate let only nearby pairs
 		// through, but a fit on a few of them can still slide along a wall.
-		const Eigen::Isometry3d off = predicted.inverse() * fit.T;
-		const double offDeg = Eigen::AngleAxisd(off.linear()).angle() * 180.0 / M_PI;
-		const bool agrees = off.translation().norm() <= guidedGate_m_ && offDeg <= guidedGate_deg_;
+		const bool agrees = withinPose(predicted, fit.T, guidedGate_m_, guidedGate_deg_);
 		d.reason = !fit.ok ? "inliers" : (!ground ? "ground" : (agrees ? "guided" : "prior"));
 		consider(d, fit, lm, q, kf, map, poses, fit.ok && ground && agrees, best, bestDecision);
 	}

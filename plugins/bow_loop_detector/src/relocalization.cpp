@@ -282,10 +282,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			for (const auto& a : searchOnSurface(surface, *data, target))
 			{
 				const auto fit = guidedFit(q, *data, a.T, static_cast<uint32_t>(seed + data->id));
-				const Eigen::Isometry3d off = a.T.inverse() * fit.T;
 				const bool agrees =
-				    fit.ok && off.translation().norm() <= guidedGate_m_ &&
-				    Eigen::AngleAxisd(off.linear()).angle() * 180.0 / M_PI <= guidedGate_deg_;
+				    fit.ok && withinPose(a.T, fit.T, guidedGate_m_, guidedGate_deg_);
 				held.push_back({a.T, agrees ? fit.inliers.size() : 0});
 			}
 			std::stable_sort(held.begin(), held.end(),
@@ -295,9 +293,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			std::size_t second = 0;
 			for (std::size_t i = 1; i < held.size(); i++)
 			{
-				const Eigen::Isometry3d d = held.front().T.inverse() * held[i].T;
-				if (d.translation().norm() > planar_.distinct_m ||
-				    Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI > planar_.distinct_deg)
+				if (!withinPose(held.front().T, held[i].T, planar_.distinct_m,
+				                planar_.distinct_deg))
 					second = std::max(second, held[i].inliers);
 			}
 			const bool distinct =

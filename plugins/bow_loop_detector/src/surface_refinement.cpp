@@ -85,14 +85,9 @@ std::vector<BowLoopDetector::SurfaceAlignment> BowLoopDetector::searchOnSurface(
 	{
 		const auto r0 = features::icpPointToPlane(coarseSurface, *tgt, h.T, coarse);
 		coarseIterations += r0.iterations;
-		const bool again =
-		    std::any_of(reached.begin(), reached.end(),
-		                [&r0](const Eigen::Isometry3d& x)
-		                {
-			                const Eigen::Isometry3d d = x.inverse() * r0.T;
-			                return d.translation().norm() < 0.1 &&
-			                       Eigen::AngleAxisd(d.linear()).angle() < 0.5 * M_PI / 180;
-		                });
+		const bool again = std::any_of(reached.begin(), reached.end(),
+		                               [&r0](const Eigen::Isometry3d& x)
+		                               { return withinPose(x, r0.T, 0.1, 0.5); });
 		if (again)
 			continue;
 		const auto r = features::icpPointToPlane(reduced, *tgt, r0.T, icp_);
