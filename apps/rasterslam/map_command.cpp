@@ -91,7 +91,7 @@ int mapInfo(const std::string& dir)
 struct MergeArgs
 {
 	std::string a, b, out, configPath;
-	bool overwrite = false, quiet = false;
+	bool overwrite = false, quiet = false, verbose = false;
 };
 
 int mapMerge(const MergeArgs& args)
@@ -108,7 +108,8 @@ int mapMerge(const MergeArgs& args)
 		                         " is the map being merged in (B): write to A or a new folder");
 	configPath = resolveConfig(configPath, "slam");
 	Engine engine(loadYamlFile(configPath), configPath);
-	engine.setLogLevel(quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO);
+	engine.setLogLevel(args.verbose ? mrpt::system::LVL_DEBUG
+	                                : (quiet ? mrpt::system::LVL_ERROR : mrpt::system::LVL_INFO));
 	// The output is written (A itself when --out is A), the inputs only read.
 	std::vector<std::unique_ptr<MapUseLock>> locks;
 	const auto lock = [&](const std::string& dir, MapUseLock::Mode mode)
@@ -302,7 +303,12 @@ std::vector<Command> addMapCommands(CLI::App& app)
 	                 configHelp("slam") + "; its loop detector and optimizer are used")
 	    ->type_name("FILE|NAME");
 	merge->add_flag("--overwrite", m->overwrite, "let --out replace a map already there");
-	merge->add_flag("--quiet", m->quiet, "only errors and the final summary");
+	auto* mq = merge->add_flag("--quiet", m->quiet, "only errors and the final summary");
+	merge
+	    ->add_flag("--verbose", m->verbose,
+	               "debug logging: each keyframe of B located or not, and why (free space, "
+	               "inliers)")
+	    ->excludes(mq);
 	cmds.push_back({merge, [m] { return guarded([&] { return mapMerge(*m); }); }});
 
 	auto p = std::make_shared<PruneArgs>();

@@ -46,7 +46,12 @@ MergeReport Engine::mergeMap(const std::string& dir)
 				continue;  // shared with the previous local map
 			const auto rl = loopDetector_->locate(*lm, map, here, static_cast<int>(k));
 			if (!rl.found)
+			{
+				MRPT_LOG_DEBUG_STREAM("keyframe " << lm->keyframes[k] << " of " << dir
+				                                  << " not located: " << rl.reason << " (score "
+				                                  << rl.score << ", " << rl.inliers << " inliers)");
 				continue;
+			}
 			hits.push_back(
 			    {id, lm->keyframes[k], rl, rl.pose + (mrpt::poses::CPose3D() - anchorPose)});
 			MRPT_LOG_DEBUG_STREAM("keyframe " << lm->keyframes[k] << " of " << dir

@@ -81,6 +81,10 @@ class BowLoopDetector : public LoopDetector
 		 *  reduced to one point a voxel, its frame), when it has one; called only once a
 		 *  place is fitted. */
 		std::function<std::vector<Eigen::Vector3f>()> surface;
+		/** false: the surface only judges free space, it neither refines nor searches the
+		 *  pose (a keyframe of a local map located alone: its surface is the whole local
+		 *  map's, more than the keyframe's features stand for). */
+		bool poseFromSurface = true;
 		/** polar_fusion: the query's polar contexts (of the index's dimensions; a place ranks
 		 *  by its best context against any of them); none: ranked by the words alone. */
 		std::vector<places::PolarContext> contexts;

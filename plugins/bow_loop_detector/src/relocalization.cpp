@@ -90,8 +90,12 @@ RelocalizationResult BowLoopDetector::locate(const LocalMap& query, const Map& m
 	}
 	if (directLevels_ > 0)
 		q.groups = groupsOf(q.desc);
-	if ((icpRefine_ || relocMaxConflicts_ < 1) && onlyKeyframe < 0)
+	// The free-space check also for one keyframe (map merge locates each): where the
+	// keyframe's features put the local map, its whole surface must not stand on the other
+	// map's bare ground.
+	if (icpRefine_ || relocMaxConflicts_ < 1)
 		q.surface = [&query] { return surfaceOf(query); };
+	q.poseFromSurface = onlyKeyframe < 0;
 	// polar_fusion: the query's contexts (about the keyframe, or about each of them) rank the
 	// places too, when it was made with contexts of the index's dimensions.
 	const std::size_t cells = std::size_t{query.contextRings} * query.contextSectors;
@@ -244,7 +248,7 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 		else
 			notPlaced("inliers", 1, score, fit.inliers.size());
 	}
-	if (!res.found && surfaceSearch_ && q.surface)
+	if (!res.found && surfaceSearch_ && q.surface && q.poseFromSurface)
 	{
 		// No candidate verified on the features: far revisits (15-30 m along the road) match
 		// too few descriptors, while their surfaces still overlap. The best-scored candidates
@@ -337,7 +341,8 @@ RelocalizationResult BowLoopDetector::relocalizeQuery(const Query& q, uint32_t s
 			return res;
 		}
 	}
-	if (bestMap && q.surface && icpRefine_ && refineOnSurface(surfaceOfQuery(), *bestMap, bestT))
+	if (bestMap && q.surface && q.poseFromSurface && icpRefine_ &&
+	    refineOnSurface(surfaceOfQuery(), *bestMap, bestT))
 	{
 		res.keyframe = nearestKeyframe(*bestMap, bestT, poses);
 		// Height from the two ground planes again, as before the refinement: on the rendered
