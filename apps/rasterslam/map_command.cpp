@@ -136,13 +136,18 @@ int mapMerge(const MergeArgs& args)
 		lock(out, MapUseLock::Mode::Write);
 	engine.saveMap(out, {});
 	const auto& t = rep.T_this_other;
+	const std::string whole = rep.localMapsWhole == 0
+	                              ? ""
+	                              : " and " + std::to_string(rep.locatedWhole) + " of " +
+	                                    std::to_string(rep.localMapsWhole) + " local maps whole";
 	std::printf(
 	    "rasterslam: merged %s (%zu local maps) into %s (%u session%s): %zu of %zu keyframes "
-	    "located, %zu agree on x=%.2f y=%.2f "
+	    "located%s, %zu agree on x=%.2f y=%.2f "
 	    "z=%.2f yaw=%.1f deg; optimized (chi2 %.3g -> %.3g, largest correction %.2f m)\n",
 	    dirs[1].c_str(), rep.localMaps, dirs[0].c_str(), sessionsA, sessionsA == 1 ? "" : "s",
-	    rep.located, rep.keyframesTried, rep.agreeing, t.x(), t.y(), t.z(), t.yaw() * 180 / M_PI,
-	    rep.optimization.initialError, rep.optimization.finalError, rep.maxCorrection_m);
+	    rep.located, rep.keyframesTried, whole.c_str(), rep.agreeing, t.x(), t.y(), t.z(),
+	    t.yaw() * 180 / M_PI, rep.optimization.initialError, rep.optimization.finalError,
+	    rep.maxCorrection_m);
 	std::printf("rasterslam: map of %u sessions, %zu keyframes written to %s\n", rep.sessions,
 	            rep.keyframes, mapFilePath(out).c_str());
 	return 0;
@@ -289,7 +294,8 @@ std::vector<Command> addMapCommands(CLI::App& app)
 	auto* merge = subcommand(
 	    *map, "merge", "merge two maps built separately into one",
 	    "Two maps built separately become one, written to C: each keyframe of B is located in A "
-	    "with no pose prior; engine.anchor_min_agreeing (3) of them must agree on where B lies, "
+	    "with no pose prior (a local map none of whose keyframes is found: all its points); "
+	    "engine.anchor_min_agreeing (3) of these hits must agree on where B lies, "
 	    "else nothing is written (exit 1, \"no overlap\"). B's keyframes are moved there and "
 	    "optimized with A fixed; B's sessions, local maps and graph follow A's (ids renumbered), "
 	    "linked by relocalization edges");

@@ -3,6 +3,7 @@
 // located in it local map by local map, and only a transform that several of them agree on is used.
 #include <rasterslam/core/engine.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <stdexcept>
@@ -26,41 +27,63 @@ MergeReport Engine::mergeMap(const std::string& dir)
 
 	// Each keyframe of the other map (the points of a local map it saw), located with no
 	// prior: where it puts the other map's frame. Keyframes, not local maps, so that a small
-	// map still gives several independent hits.
+	// map still gives several independent hits. A local map none of whose keyframes is found
+	// is located whole (all its points, its surface refining the pose): another sensor in a
+	// changed town matches too few features a keyframe (session 10 of benchmark-sessions.sh
+	// against session 1's map: 2 of 59 keyframes, 5 of its 15 local maps whole).
 	struct Hit
 	{
 		uint64_t theirs = 0;    //!< local map of the other map
-		uint64_t keyframe = 0;  //!< keyframe of the other map
+		uint64_t keyframe = 0;  //!< keyframe of the other map (a local map's anchor: whole)
 		RelocalizationResult rl;
 		mrpt::poses::CPose3D T_this_other;
 	};
 	std::vector<Hit> hits;
-	std::set<uint64_t> tried;
+	std::set<uint64_t> tried, found;
+	const auto log = [&](const std::string& what, const RelocalizationResult& rl)
+	{
+		if (rl.found)
+			MRPT_LOG_DEBUG_STREAM(what << " of " << dir << " found at local map " << rl.localMap
+			                           << " (" << rl.inliers << " inliers)");
+		else
+			MRPT_LOG_DEBUG_STREAM(what << " of " << dir << " not located: " << rl.reason
+			                           << " (score " << rl.score << ", " << rl.inliers
+			                           << " inliers)");
+	};
 	for (const auto& [id, stub] : other.localMaps)
 	{
 		const auto lm = other.data(id);
 		const auto anchorPose = other.priorPoses.at(lm->anchor());
+		const auto T_this_other = [&anchorPose](const RelocalizationResult& rl)
+		{ return rl.pose + (mrpt::poses::CPose3D() - anchorPose); };
 		for (std::size_t k = 0; k < lm->keyframes.size(); k++)
 		{
 			if (!tried.insert(lm->keyframes[k]).second)
 				continue;  // shared with the previous local map
 			const auto rl = loopDetector_->locate(*lm, map, here, static_cast<int>(k));
+			log("keyframe " + std::to_string(lm->keyframes[k]), rl);
 			if (!rl.found)
-			{
-				MRPT_LOG_DEBUG_STREAM("keyframe " << lm->keyframes[k] << " of " << dir
-				                                  << " not located: " << rl.reason << " (score "
-				                                  << rl.score << ", " << rl.inliers << " inliers)");
 				continue;
+			hits.push_back({id, lm->keyframes[k], rl, T_this_other(rl)});
+			found.insert(lm->keyframes[k]);
+		}
+		// Whole only where none of its keyframes (those shared with the local map before it
+		// included) gave a hit: no keyframe's features are counted twice.
+		if (std::none_of(lm->keyframes.begin(), lm->keyframes.end(),
+		                 [&found](uint64_t k) { return found.count(k) > 0; }))
+		{
+			rep.localMapsWhole++;
+			const auto rl = loopDetector_->locate(*lm, map, here, -1);
+			log("local map " + std::to_string(id) + " (whole)", rl);
+			if (rl.found)
+			{
+				hits.push_back({id, lm->anchor(), rl, T_this_other(rl)});
+				rep.locatedWhole++;
 			}
-			hits.push_back(
-			    {id, lm->keyframes[k], rl, rl.pose + (mrpt::poses::CPose3D() - anchorPose)});
-			MRPT_LOG_DEBUG_STREAM("keyframe " << lm->keyframes[k] << " of " << dir
-			                                  << " found at local map " << rl.localMap << " ("
-			                                  << rl.inliers << " inliers)");
 		}
 	}
 	rep.keyframesTried = tried.size();
-	rep.located = hits.size();
+	rep.located = hits.size() - rep.locatedWhole;
 	// The hit that the most others agree with (compared where each other hit is: a heading
 	// difference counts as the offset it makes there).
 	std::vector<std::size_t> best;
@@ -80,10 +103,12 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	rep.agreeing = best.size();
 	if (best.size() < static_cast<std::size_t>(anchorMinAgreeing_))
 		throw std::runtime_error(
-		    "no overlap found between the maps: " + std::to_string(hits.size()) + " of " +
-		    std::to_string(tried.size()) + " keyframes of '" + dir + "' were located, " +
-		    std::to_string(best.size()) + " agree on one place, " +
-		    std::to_string(anchorMinAgreeing_) + " needed (engine.anchor_min_agreeing)");
+		    "no overlap found between the maps: " + std::to_string(rep.located) + " of " +
+		    std::to_string(tried.size()) + " keyframes of '" + dir + "' were located (and " +
+		    std::to_string(rep.locatedWhole) + " of " + std::to_string(rep.localMapsWhole) +
+		    " local maps whole, none of whose keyframes was), " + std::to_string(best.size()) +
+		    " agree on one place, " + std::to_string(anchorMinAgreeing_) +
+		    " needed (engine.anchor_min_agreeing)");
 	rep.T_this_other = hits[best.front()].T_this_other;
 
 	// The pose graph: the loaded map's keyframes that a hit names (fixed), the other map's

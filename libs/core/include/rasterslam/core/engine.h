@@ -107,7 +107,10 @@ struct MergeReport
 	std::size_t localMaps = 0;       //!< local maps of the map merged in
 	std::size_t keyframesTried = 0;  //!< its keyframes, each located with the points it saw
 	std::size_t located = 0;         //!< of those, found in the loaded map
-	std::size_t agreeing = 0;        //!< of those, agreeing on where the other map lies (linked)
+	/** Local maps none of whose keyframes was found, located whole (all their points), and
+	 *  of those the ones found. */
+	std::size_t localMapsWhole = 0, locatedWhole = 0;
+	std::size_t agreeing = 0;  //!< of all the hits, agreeing on where the other map lies (linked)
 	/** The other map's frame in the loaded one's, from the agreeing hits (before the
 	 *  optimization). */
 	mrpt::poses::CPose3D T_this_other;
