@@ -995,25 +995,30 @@ TEST(Mapping, LifelongConfigLocatesAnotherSensorInAChangedTown)
 	const auto map = (dir / "map").string();
 	auto r = mapFirstSession(dir.path(), s1, cfg);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	// Session 2 also as a map of its own, merged into session 1's (map merge): few of its
-	// keyframes are located alone; the local maps none of whose keyframes is are located whole.
-	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + s2.string() + " --config " +
-	                     cfg.string() + " --quiet --out " + (dir / "ob").string() + " --map-out " +
-	                     (dir / "map-b").string());
-	ASSERT_EQ(r.exitCode, 0) << r.output;
-	r = test::runCommand(test::bin("rasterslam") + " map merge " + map + " " +
-	                     (dir / "map-b").string() + " --out " + (dir / "merged").string() +
-	                     " --config " + cfg.string() + " --quiet");
-	ASSERT_EQ(r.exitCode, 0) << r.output;
-	std::smatch whole;
-	const bool wholeLocated =
-	    std::regex_search(r.output, whole, std::regex(" and ([0-9]+) of [0-9]+ local maps whole"));
-	EXPECT_TRUE(wholeLocated) << r.output;
-	if (wholeLocated)
-		EXPECT_GE(std::stoi(whole[1].str()), 1) << r.output;
-	r = test::runCommand(test::bin("rasterslam") + " map export " + (dir / "merged").string() +
-	                     " --out " + (dir / "merged-x").string());
-	ASSERT_EQ(r.exitCode, 0) << r.output;
+	// Sessions 2 and 4 (a VLP-16 on another route 3 epochs later) also as maps of their own,
+	// each merged into session 1's (map merge): few of their keyframes are located alone; the
+	// local maps none of whose keyframes is are located whole.
+	const auto s4 = townSession(dir.path(), "s4", "vlp16", 530, 4,
+	                            "[[0,0],[0,128],[64,128],[64,0]]", "epoch: 3\n" + moving);
+	for (const auto& [rawlog, name] : {std::pair{s2, "b2"}, std::pair{s4, "b4"}})
+	{
+		const auto b = dir / name;
+		r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + rawlog.string() +
+		                     " --config " + cfg.string() + " --quiet --out " + b.string() +
+		                     " --map-out " + (b / "map").string());
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+		r = test::runCommand(test::bin("rasterslam") + " map merge " + map + " " +
+		                     (b / "map").string() + " --out " + (b / "merged").string() +
+		                     " --config " + cfg.string() + " --quiet");
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+		std::smatch whole;
+		EXPECT_TRUE(std::regex_search(r.output, whole,
+		                              std::regex(" and ([1-9][0-9]*) of [0-9]+ local maps whole")))
+		    << r.output;
+		r = test::runCommand(test::bin("rasterslam") + " map export " + (b / "merged").string() +
+		                     " --out " + (b / "x").string());
+		ASSERT_EQ(r.exitCode, 0) << r.output;
+	}
 	r = test::runCommand(test::bin("rasterslam") + " run --rawlog " + s2.string() + " --config " +
 	                     cfg.string() + " --quiet --out " + (dir / "o2").string() + " --map-in " +
 	                     map + " --map-out " + map + " --require-localization");
@@ -1040,14 +1045,23 @@ TEST(Mapping, LifelongConfigLocatesAnotherSensorInAChangedTown)
 	ASSERT_EQ(e2.exitCode, 0) << e2.output;
 	const double ate2 = jsonNumber(e2.output, "ate_rmse_m");
 	EXPECT_LT(ate2, 0.4) << "session 2 in the map's frame";
-	// The merged map's keyframes of session 2 in the map's frame, judged the same way; the
-	// README states 0.3 m (1.1 m with the keyframes' hits alone).
-	const auto em = test::runCommand(
-	    test::bin("rasterslam-eval") + " traj --gt " + (dir / "ob/groundtruth.tum").string() +
-	    " --est " + (dir / "merged-x/keyframes-s1.tum").string() + " --json --align " + m[1].str());
-	ASSERT_EQ(em.exitCode, 0) << em.output;
-	const double ateMerged = jsonNumber(em.output, "ate_rmse_m");
-	std::printf("session 2 in the map's frame: ATE %.3f m (--map-in), %.3f m (merged: %s)\n", ate2,
-	            ateMerged, wholeLocated ? whole[0].str().c_str() : "");
-	EXPECT_LT(ateMerged, 0.5) << "session 2 merged, in the map's frame";
+	// The merged maps' keyframes of sessions 2 and 4 in the map's frame, judged the same way;
+	// the README states 0.28 and 0.57 m (1.13 and 0.76 m with the keyframes' hits alone, and
+	// 0.29 and 0.80 m with the hits' rotation weighted 0.1 rad instead of 0.5 deg).
+	const auto merged = [&](const std::string& name)
+	{
+		const auto em = test::runCommand(test::bin("rasterslam-eval") + " traj --gt " +
+		                                 (dir / name / "groundtruth.tum").string() + " --est " +
+		                                 (dir / name / "x/keyframes-s1.tum").string() +
+		                                 " --json --align " + m[1].str());
+		EXPECT_EQ(em.exitCode, 0) << em.output;
+		return jsonNumber(em.output, "ate_rmse_m");
+	};
+	const double ateB2 = merged("b2"), ateB4 = merged("b4");
+	std::printf(
+	    "in the map's frame: session 2 ATE %.3f m (--map-in), %.3f m (merged); session 4 "
+	    "merged %.3f m\n",
+	    ate2, ateB2, ateB4);
+	EXPECT_LT(ateB2, 0.4) << "session 2 merged, in the map's frame";
+	EXPECT_LT(ateB4, 0.7) << "session 4 merged, in the map's frame";
 }
