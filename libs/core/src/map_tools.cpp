@@ -28,9 +28,10 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	// Each keyframe of the other map (the points of a local map it saw), located with no
 	// prior: where it puts the other map's frame. Keyframes, not local maps, so that a small
 	// map still gives several independent hits. A local map none of whose keyframes is found
-	// is located whole (all its points, its surface refining the pose): another sensor in a
-	// changed town matches too few features a keyframe (session 10 of benchmark-sessions.sh
-	// against session 1's map: 2 of 59 keyframes, 5 of its 15 local maps whole).
+	// is located whole (all its points; its surface refines the pose, and searches it when
+	// the detector's surface search is on): another sensor in a changed town matches too few
+	// features a keyframe (session 10 of benchmark-sessions.sh against session 1's map: 2 of
+	// 59 keyframes, then 3 of the 10 local maps left, whole).
 	struct Hit
 	{
 		uint64_t theirs = 0;    //!< local map of the other map
@@ -68,7 +69,8 @@ MergeReport Engine::mergeMap(const std::string& dir)
 			found.insert(lm->keyframes[k]);
 		}
 		// Whole only where none of its keyframes (those shared with the local map before it
-		// included) gave a hit: no keyframe's features are counted twice.
+		// included) is in a hit already, a keyframe's or a whole local map's: no keyframe's
+		// features are counted twice.
 		if (std::none_of(lm->keyframes.begin(), lm->keyframes.end(),
 		                 [&found](uint64_t k) { return found.count(k) > 0; }))
 		{
@@ -78,6 +80,7 @@ MergeReport Engine::mergeMap(const std::string& dir)
 			if (rl.found)
 			{
 				hits.push_back({id, lm->anchor(), rl, T_this_other(rl)});
+				found.insert(lm->keyframes.begin(), lm->keyframes.end());
 				rep.locatedWhole++;
 			}
 		}
@@ -120,13 +123,24 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	EdgeSet uncertain;
 	for (const auto& [id, p] : other.priorPoses)
 		g.nodes[offset + id] = rep.T_this_other + p;
-	mrpt::math::CMatrixDouble66 seqInfo;
-	seqInfo.setZero();
-	for (int i = 0; i < 3; i++)
+	// Information of an edge good to m metres and deg degrees on each axis.
+	const auto diagonalInfo = [](double m, double deg)
 	{
-		seqInfo(i, i) = 1.0 / (0.05 * 0.05);  // the other map's own estimate: a few cm
-		seqInfo(i + 3, i + 3) = 1.0 / std::pow(0.5 * M_PI / 180, 2);
-	}
+		mrpt::math::CMatrixDouble66 info;
+		info.setZero();
+		for (int a = 0; a < 3; a++)
+		{
+			info(a, a) = 1.0 / (m * m);
+			info(a + 3, a + 3) = 1.0 / std::pow(deg * M_PI / 180, 2);
+		}
+		return info;
+	};
+	const auto seqInfo = diagonalInfo(0.05, 0.5);  // the other map's own estimate: a few cm
+	// A hit: 0.1 m and 0.5 deg. A relocalization's rotation is good to about 0.2 deg (median
+	// on the rendered KITTI revisits), and it is the rotation that a few hits on one stretch
+	// of B must give (0.1 rad before: sessions 4 and 10 of benchmark-sessions.sh merged into
+	// session 1's map 0.82 and 1.04 m off, now 0.58 and 0.39).
+	const auto hitInfo = diagonalInfo(0.1, 0.5);
 	std::optional<uint64_t> prev;
 	for (const auto& [id, k] : other.keyframes)
 	{
@@ -142,23 +156,12 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		const auto& h = hits[i];
 		g.nodes[h.rl.keyframe] = h.rl.keyframePose;
 		fixed.insert(h.rl.keyframe);
-		// 0.1 m and 0.5 deg: a relocalization's rotation is good to about 0.2 deg (median on
-		// the rendered KITTI revisits), and it is the rotation that a few hits on one stretch
-		// of B must give (0.1 rad before: sessions 4 and 10 of benchmark-sessions.sh merged
-		// into session 1's map 0.80 and 1.04 m off, now 0.57 and 0.39).
-		mrpt::math::CMatrixDouble66 info;
-		info.setZero();
-		for (int i = 0; i < 3; i++)
-		{
-			info(i, i) = 1.0 / (0.1 * 0.1);
-			info(i + 3, i + 3) = 1.0 / std::pow(0.5 * M_PI / 180, 2);
-		}
 		// The hit placed the local map's anchor; the edge goes to the keyframe it was made from.
 		const auto anchor = other.localMaps.at(h.theirs)->anchor();
 		const auto T_this_kf =
 		    h.rl.pose + (other.priorPoses.at(h.keyframe) - other.priorPoses.at(anchor));
 		g.insertEdge(h.rl.keyframe, offset + h.keyframe,
-		             mrpt::poses::CPose3DPDFGaussianInf(T_this_kf - h.rl.keyframePose, info));
+		             mrpt::poses::CPose3DPDFGaussianInf(T_this_kf - h.rl.keyframePose, hitInfo));
 		uncertain.insert({h.rl.keyframe, offset + h.keyframe});
 		links.emplace(h.rl.localMap, h.theirs);
 	}
