@@ -63,6 +63,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	guidedGate_deg_ = p.getDouble("guided_gate_deg", guidedGate_deg_);
 	guidedMinInliers_ = p.getInt("guided_min_inliers", guidedMinInliers_);
 	guidedMaxCandidates_ = p.getInt("guided_max_candidates", guidedMaxCandidates_);
+	followLoop_m_ = p.getDouble("follow_loop_m", followLoop_m_);
 	icpRefine_ = p.getBool("icp_refine", icpRefine_);
 	icp_.voxel_m = p.getDouble("icp_voxel_m", 0.8);
 	icpRange_m_ = p.getDouble("icp_range_m", icpRange_m_);
@@ -113,6 +114,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	p.requireRange(guidedGate_deg_, 0, 180, "guided_gate_deg");
 	p.requireAtLeast(guidedMinInliers_, 3, "guided_min_inliers");
 	p.requireAtLeast(guidedMaxCandidates_, 1, "guided_max_candidates");
+	p.requireAtLeast(followLoop_m_, 0, "follow_loop_m");  // 0: off
 	p.requireRange(icp_.voxel_m, 0.05, 5.0, "icp_voxel_m");
 	p.requireRange(icpRange_m_, 1.0, 150.0, "icp_range_m");
 	p.requirePositive(icp_.maxCorrespondence_m, "icp_max_distance_m");
@@ -579,6 +581,14 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		else
 			prevBow_ = b;
 	}
+	// A keyframe after a loss is not linked to the last loop's by the odometry.
+	if (kf.afterLoss || kf.locatedAt)
+		lastLoop_.reset();
+	// Following the last loop: the place it closed on continues where the odometry went.
+	std::optional<LoopConstraint> followed;
+	if (!best && n > 0)
+		if (const auto at = followedPose(kf, map, poses))
+			followed = guidedSearch(q, kf, map, poses, &*at);
 	// An anchored session also looks for the earlier sessions where it is, unless the BOW
 	// search found one of them.
 	const bool bestEarlier = best && map.localMaps.count(best->localMap) &&
@@ -589,16 +599,26 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 	// Refined on the surfaces (the scan made into a surface only for a loop found).
 	if (best)
 		refineLoop(*best, decisions_[bestDecision], q, kf, map, poses);
-	if (best)
+	if (followed)
+		best = followed;  // refined and logged by guidedSearch
+	else if (best)
 	{
 		decisions_[bestDecision].accepted = true;
-		out.push_back(*best);
 		MRPT_LOG_INFO_FMT(
 		    "loop: keyframe %llu (t=%.2f) -> keyframe %llu in local map %llu, score %.2f, %zu "
 		    "inliers",
 		    static_cast<unsigned long long>(best->to), kf.stamp,
 		    static_cast<unsigned long long>(best->from),
 		    static_cast<unsigned long long>(best->localMap), best->score, best->inliers);
+	}
+	if (best)
+	{
+		out.push_back(*best);
+		// Followed by the next keyframes when it is to this session's place.
+		const auto it = map.localMaps.find(best->localMap);
+		if (it != map.localMaps.end() && it->second->session + 1 == map.sessions)
+			lastLoop_ =
+			    LastLoop{best->from, best->to, toIsometry(best->T_from_to), it->second->session};
 	}
 	// Every query leaves a line, so that recall counts the keyframes that found nothing.
 	if (decisions_.size() == decisionsBefore)

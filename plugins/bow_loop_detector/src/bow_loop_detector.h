@@ -136,7 +136,8 @@ class BowLoopDetector : public LoopDetector
 	 *  `predicted` (T_anchor_query) puts them, then fitted by RANSAC with guided_min_inliers
 	 *  (inliers as query feature indices). */
 	features::RigidResult guidedFit(const Query& q, const LocalMap& lm,
-	                                const Eigen::Isometry3d& predicted, uint32_t seed) const;
+	                                const Eigen::Isometry3d& predicted, uint32_t seed,
+	                                uint32_t keyframes = kAllKeyframes) const;
 	/** The query's features matched with all of the local map's as verify() matches them
 	 *  (mutual, ratio test: a feature that repeats does not pass), counted where pose T
 	 *  (T_anchor_query) puts the two within `within_m`: evidence of T independent of the
@@ -226,10 +227,34 @@ class BowLoopDetector : public LoopDetector
 	/** Once the session is anchored in a prior map (kf.inMapFrame): the earlier sessions'
 	 *  local maps within guided_radius_m of the keyframe, matched with the predicted positions
 	 *  as a gate; a fit with guided_min_inliers that agrees with the prediction is a loop. */
+	/** With `followed` (follow_loop_m): the same search among this session's local maps old
+	 *  enough to be loop candidates (their old keyframes' points only), near the keyframe's
+	 *  pose `followed` as the last loop puts it, not as the odometry does. */
 	std::optional<LoopConstraint> guidedSearch(const Query& q, const KeyframeInfo& kf,
-	                                           const Map& map, const PoseView& poses);
+	                                           const Map& map, const PoseView& poses,
+	                                           const Eigen::Isometry3d* followed = nullptr);
 	double guidedRadius_m_ = 10.0, guidedGate_m_ = 2.0, guidedGate_deg_ = 5.0;
 	int guidedMinInliers_ = 12, guidedMaxCandidates_ = 2;
+	/** follow_loop_m: a keyframe that the BOW search closes no loop for, within this many
+	 *  metres of the last keyframe that closed one in this session, is searched for where
+	 *  that loop and the odometry since put it (guidedSearch with `followed`); 0: off. A
+	 *  revisit closes its loops one keyframe after another, and one whose candidate falls a
+	 *  few inliers short of min_inliers is otherwise lost. */
+	double followLoop_m_ = 0;
+	/** The last loop closed in this session: keyframe `from` of the earlier pass, the query
+	 *  keyframe, and the query in the from keyframe's frame. */
+	struct LastLoop
+	{
+		uint64_t from = 0, query = 0;
+		Eigen::Isometry3d T_from_query = Eigen::Isometry3d::Identity();
+		uint32_t session = 0;
+	};
+	std::optional<LastLoop> lastLoop_;
+	/** Where the last loop (lastLoop_) and the odometry since put keyframe kf, in the map
+	 *  frame; nullopt when there is none in this session, follow_loop_m is 0 or kf is
+	 *  farther than it from the loop's query keyframe. */
+	std::optional<Eigen::Isometry3d> followedPose(const KeyframeInfo& kf, const Map& map,
+	                                              const PoseView& poses) const;
 	enum class Search
 	{
 		Bow,

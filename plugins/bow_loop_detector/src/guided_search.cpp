@@ -11,21 +11,34 @@
 using namespace rasterslam;
 
 features::RigidResult BowLoopDetector::guidedFit(const Query& q, const LocalMap& lm,
-                                                 const Eigen::Isometry3d& predicted,
-                                                 uint32_t seed) const
+                                                 const Eigen::Isometry3d& predicted, uint32_t seed,
+                                                 uint32_t keyframes) const
 {
 	const Eigen::Isometry3f pf = predicted.cast<float>();
 	std::vector<Eigen::Vector3f> qInAnchor, lmPts;
 	qInAnchor.reserve(q.pts.size());
 	for (const auto& p : q.pts)
 		qInAnchor.push_back(pf * p);
+	const std::size_t nk = std::min<std::size_t>(lm.keyframes.size(), 32);
+	const uint32_t every = nk >= 32 ? kAllKeyframes : (1u << nk) - 1;
+	const bool all = (keyframes & every) == every;
 	lmPts.reserve(lm.points());
+	cv::Mat cand;
+	if (all)
+		cand = cv::Mat(static_cast<int>(lm.points()), 32, CV_8U,
+		               const_cast<uint8_t*>(lm.descriptors.data()));
+	else
+		cand.create(0, 32, CV_8U);
 	for (std::size_t i = 0; i < lm.points(); i++)
-		lmPts.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
+		if (all || (lm.observers[i] & keyframes))
+		{
+			lmPts.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
+			if (!all)
+				cand.push_back(
+				    cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
+		}
 	features::MatchParams mp = match_;
 	mp.gateRadius_m = static_cast<float>(guidedGate_m_);
-	const cv::Mat cand(static_cast<int>(lm.points()), 32, CV_8U,
-	                   const_cast<uint8_t*>(lm.descriptors.data()));
 	const auto matches = features::matchMutual(q.desc, cand, mp, &qInAnchor, &lmPts);
 	std::vector<Eigen::Vector3f> p, m;
 	for (const auto& mt : matches)
@@ -41,26 +54,53 @@ features::RigidResult BowLoopDetector::guidedFit(const Query& q, const LocalMap&
 	return fit;
 }
 
+std::optional<Eigen::Isometry3d> BowLoopDetector::followedPose(const KeyframeInfo& kf,
+                                                               const Map& map,
+                                                               const PoseView& poses) const
+{
+	if (followLoop_m_ <= 0 || !lastLoop_ || lastLoop_->session + 1 != map.sessions)
+		return std::nullopt;
+	const auto from = poses(lastLoop_->from);
+	const auto query = poses(lastLoop_->query);
+	if (!from || !query)
+		return std::nullopt;
+	// The odometry since the loop's keyframe: the two are this session's, drifted alike.
+	const Eigen::Isometry3d moved = toIsometry(*query).inverse() * toIsometry(kf.pose);
+	if (moved.translation().norm() > followLoop_m_)
+		return std::nullopt;
+	return toIsometry(*from) * lastLoop_->T_from_query * moved;
+}
+
 std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, const KeyframeInfo& kf,
-                                                            const Map& map, const PoseView& poses)
+                                                            const Map& map, const PoseView& poses,
+                                                            const Eigen::Isometry3d* followed)
 {
 	struct Cand
 	{
 		double dist;
 		uint64_t localMap;
+		uint32_t keyframes;
 	};
 	std::vector<Cand> cands;
-	const Eigen::Vector3d here(kf.pose.x(), kf.pose.y(), kf.pose.z());
+	const Eigen::Isometry3d at = followed ? *followed : toIsometry(kf.pose);
+	const Eigen::Vector3d here = at.translation();
 	for (const auto& [id, lm] : map.localMaps)
 	{
-		if (lm->session + 1 >= map.sessions)
-			continue;  // this session's: the BOW search's
+		// Earlier sessions' (this session's are the BOW search's), or following a loop this
+		// session's old enough to close one.
+		const bool thisSession = lm->session + 1 >= map.sessions;
+		if (thisSession != (followed != nullptr))
+			continue;
+		const uint32_t keyframes = followed ? loopKeyframes(*lm, map, kf) : kAllKeyframes;
+		if (keyframes == 0)
+			continue;
 		double best = std::numeric_limits<double>::max();
-		for (const auto k : lm->keyframes)
-			if (const auto p = poses(k))
-				best = std::min(best, (Eigen::Vector3d(p->x(), p->y(), p->z()) - here).norm());
+		for (std::size_t k = 0; k < lm->keyframes.size(); k++)
+			if (k >= 32 || (keyframes & (1u << k)))
+				if (const auto p = poses(lm->keyframes[k]))
+					best = std::min(best, (Eigen::Vector3d(p->x(), p->y(), p->z()) - here).norm());
 		if (best <= guidedRadius_m_)
-			cands.push_back({best, id});
+			cands.push_back({best, id, keyframes});
 	}
 	std::stable_sort(cands.begin(), cands.end(),
 	                 [](const Cand& a, const Cand& b) { return a.dist < b.dist; });
@@ -80,8 +120,9 @@ std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, cons
 			continue;
 		// Where the query should be in the anchor's frame; features are paired only where
 		// their predicted positions agree within the gate.
-		const Eigen::Isometry3d predicted = toIsometry(*anchor).inverse() * toIsometry(kf.pose);
-		auto fit = guidedFit(q, lm, predicted, static_cast<uint32_t>(kf.node * 37 + lm.id));
+		const Eigen::Isometry3d predicted = toIsometry(*anchor).inverse() * at;
+		auto fit =
+		    guidedFit(q, lm, predicted, static_cast<uint32_t>(kf.node * 37 + lm.id), c.keyframes);
 		LoopDecision d;
 		d.queryStamp = kf.stamp;
 		d.score = q.pts.empty()
@@ -94,8 +135,8 @@ std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, cons
 		if (fit.ok)
 		{
 			double tilt = 0;
-			const auto aligned =
-			    groundAligned(q, lm, nearestKeyframe(lm, fit.T, poses), fit.T, map, poses, &tilt);
+			const auto aligned = groundAligned(
+			    q, lm, nearestKeyframe(lm, fit.T, poses, c.keyframes), fit.T, map, poses, &tilt);
 			if (aligned)
 				fit.T = *aligned;
 			else
@@ -104,18 +145,24 @@ std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, cons
 		// The registration must agree with the prediction: the gate let only nearby pairs
 		// through, but a fit on a few of them can still slide along a wall.
 		const bool agrees = withinPose(predicted, fit.T, guidedGate_m_, guidedGate_deg_);
-		d.reason = !fit.ok ? "inliers" : (!ground ? "ground" : (agrees ? "guided" : "prior"));
-		consider(d, fit, lm, q, kf, map, poses, fit.ok && ground && agrees, best, bestDecision);
+		d.reason = !fit.ok    ? "inliers"
+		           : !ground  ? "ground"
+		           : !agrees  ? "prior"
+		           : followed ? "followed"
+		                      : "guided";
+		consider(d, fit, lm, q, kf, map, poses, fit.ok && ground && agrees, best, bestDecision,
+		         c.keyframes);
 	}
 	if (best)
 	{
 		refineLoop(*best, decisions_[bestDecision], q, kf, map, poses);
 		decisions_[bestDecision].accepted = true;
 		MRPT_LOG_INFO_FMT(
-		    "guided loop: keyframe %llu (t=%.2f) -> keyframe %llu of an earlier "
-		    "session, local map %llu, %zu inliers",
-		    static_cast<unsigned long long>(best->to), kf.stamp,
+		    "%s loop: keyframe %llu (t=%.2f) -> keyframe %llu of %s, local map %llu, %zu "
+		    "inliers",
+		    followed ? "followed" : "guided", static_cast<unsigned long long>(best->to), kf.stamp,
 		    static_cast<unsigned long long>(best->from),
+		    followed ? "an earlier pass" : "an earlier session",
 		    static_cast<unsigned long long>(best->localMap), best->inliers);
 	}
 	return best;
