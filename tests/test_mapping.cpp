@@ -999,8 +999,8 @@ TEST(Mapping, LifelongConfigLocatesAnotherSensorInAChangedTown)
 	auto r = mapFirstSession(dir.path(), s1, cfg);
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 	// Sessions 2 and 4 (a VLP-16 on another route 3 epochs later) also as maps of their own,
-	// each merged into session 1's (map merge): few of their keyframes are located alone; the
-	// local maps none of whose keyframes is are located whole.
+	// each merged into session 1's (map merge): few of their keyframes are located alone; a
+	// local map none of whose keyframes is located is located whole.
 	const auto s4 = townSession(dir.path(), "s4", "vlp16", 530, 4,
 	                            "[[0,0],[0,128],[64,128],[64,0]]", "epoch: 3\n" + moving);
 	for (const auto& [rawlog, name] : {std::pair{s2, "b2"}, std::pair{s4, "b4"}})

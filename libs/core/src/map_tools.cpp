@@ -109,9 +109,9 @@ MergeReport Engine::mergeMap(const std::string& dir)
 		    "no overlap found between the maps: " + std::to_string(rep.located) + " of " +
 		    std::to_string(tried.size()) + " keyframes of '" + dir + "' were located (and " +
 		    std::to_string(rep.locatedWhole) + " of " + std::to_string(rep.localMapsWhole) +
-		    " local maps whole, none of whose keyframes was), " + std::to_string(best.size()) +
-		    " agree on one place, " + std::to_string(anchorMinAgreeing_) +
-		    " needed (engine.anchor_min_agreeing)");
+		    " local maps whole, none of whose keyframes was in a hit), " +
+		    std::to_string(best.size()) + " agree on one place, " +
+		    std::to_string(anchorMinAgreeing_) + " needed (engine.anchor_min_agreeing)");
 	rep.T_this_other = hits[best.front()].T_this_other;
 
 	// The pose graph: the loaded map's keyframes that a hit names (fixed), the other map's
