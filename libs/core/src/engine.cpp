@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "backend.h"
+#include "information.h"
 
 namespace rasterslam
 {
@@ -42,8 +43,7 @@ LoopConstraint relocalizationConstraint(const RelocalizationResult& rl)
 	LoopConstraint c;
 	c.from = rl.keyframe;
 	c.T_from_to = rl.pose - rl.keyframePose;
-	c.information.setIdentity();
-	c.information *= 100;
+	c.information = diagonalInformation(0.1, 0.5);
 	return c;
 }
 const std::vector<std::string> kSections = {

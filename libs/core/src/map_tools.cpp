@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "information.h"
+
 namespace rasterslam
 {
 MergeReport Engine::mergeMap(const std::string& dir)
@@ -123,24 +125,12 @@ MergeReport Engine::mergeMap(const std::string& dir)
 	EdgeSet uncertain;
 	for (const auto& [id, p] : other.priorPoses)
 		g.nodes[offset + id] = rep.T_this_other + p;
-	// Information of an edge good to m metres and deg degrees on each axis.
-	const auto diagonalInfo = [](double m, double deg)
-	{
-		mrpt::math::CMatrixDouble66 info;
-		info.setZero();
-		for (int a = 0; a < 3; a++)
-		{
-			info(a, a) = 1.0 / (m * m);
-			info(a + 3, a + 3) = 1.0 / std::pow(deg * M_PI / 180, 2);
-		}
-		return info;
-	};
-	const auto seqInfo = diagonalInfo(0.05, 0.5);  // the other map's own estimate: a few cm
+	const auto seqInfo = diagonalInformation(0.05, 0.5);  // the other map's own estimate: a few cm
 	// A hit: 0.1 m and 0.5 deg. A relocalization's rotation is good to about 0.2 deg (median
 	// on the rendered KITTI revisits), and it is the rotation that a few hits on one stretch
 	// of B must give (0.1 rad before: sessions 4 and 10 of benchmark-sessions.sh merged into
 	// session 1's map 0.82 and 1.04 m off, now 0.58 and 0.39).
-	const auto hitInfo = diagonalInfo(0.1, 0.5);
+	const auto hitInfo = diagonalInformation(0.1, 0.5);
 	std::optional<uint64_t> prev;
 	for (const auto& [id, k] : other.keyframes)
 	{
