@@ -41,10 +41,7 @@ const std::string& vlp16Rawlog()
 /** slam.yaml (the vocabulary path made absolute), local BA on or off, extra engine lines. */
 fs::path slamConfig(const fs::path& dir, bool localBa, const std::string& engineExtra)
 {
-	std::ifstream in(test::sourcePath("share/rasterslam/config/slam.yaml"));
-	std::string y((std::istreambuf_iterator<char>(in)), {});
-	y = std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
-	                       "vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
+	std::string y = test::shippedConfig("slam.yaml");
 	y = std::regex_replace(y, std::regex("local_ba: false"),
 	                       localBa ? "local_ba: true" : "local_ba: false");
 	if (!engineExtra.empty())
@@ -988,11 +985,8 @@ TEST(Mapping, LifelongConfigLocatesAnotherSensorInAChangedTown)
 	    townSession(dir.path(), "s1", "hdl64", 530, 1, "[[0,0],[128,0],[128,64],[0,64]]", moving);
 	const auto s2 = townSession(dir.path(), "s2", "vlp16", 530, 2,
 	                            "[[0,64],[128,64],[128,0],[0,0]]", "epoch: 1\n" + moving);
-	std::ifstream in(test::sourcePath("share/rasterslam/config/lifelong.yaml"));
-	std::string y((std::istreambuf_iterator<char>(in)), {});
+	const std::string y = test::shippedConfig("lifelong.yaml");
 	ASSERT_NE(y.find("max_height_m: 3 "), std::string::npos);
-	y = std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
-	                       "vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
 	const auto cfg = dir / "lifelong.yaml";
 	std::ofstream(cfg) << y;
 	const auto map = (dir / "map").string();

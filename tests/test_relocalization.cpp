@@ -281,15 +281,6 @@ void mapKittiStreet(const std::string& D, const fs::path& dir, int last = -1)
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 }
 
-/** slam.yaml with its vocabulary path made absolute (to be written into `dir`). */
-std::string slamYaml()
-{
-	std::ifstream in(test::sourcePath("share/rasterslam/config/slam.yaml"));
-	std::string y((std::istreambuf_iterator<char>(in)), {});
-	return std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
-	                          "vocabulary_file: " + test::sourcePath("share/rasterslam/vocab/"));
-}
-
 /** `rasterslam relocalize` of `rawlog` in dir/map with config `cfg` into dir/out, evaluated
  *  against dir/q.tum and the map run's trajectories (dir/run): the evaluator's JSON. */
 nlohmann::json relocalizeAndEvaluate(const fs::path& dir, const fs::path& cfg,
@@ -430,8 +421,8 @@ TEST(Relocalization, TurnedQueryImagesOnTheKittiStreet)
 	                     (dir / "q.tum").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
 
-	const std::string y =
-	    std::regex_replace(slamYaml(), std::regex("max_candidates: 5 "), "max_candidates: 1 ");
+	const std::string y = std::regex_replace(
+	    test::shippedConfig("slam.yaml"), std::regex("max_candidates: 5 "), "max_candidates: 1 ");
 	const auto plainCfg = dir / "one.yaml", turnsCfg = dir / "turns.yaml";
 	std::ofstream(plainCfg) << y;
 	std::ofstream(turnsCfg) << std::regex_replace(y, std::regex("\n    min_score:"),
@@ -483,7 +474,7 @@ TEST(Relocalization, FarRevisitsFoundOnTheSurfacesOfTheKittiStreet)
 	                          " --every 10 --compress 0 -o " + query + " --gt-tum " +
 	                          (dir / "q.tum").string());
 	ASSERT_EQ(r.exitCode, 0) << r.output;
-	const std::string y = slamYaml();
+	const std::string y = test::shippedConfig("slam.yaml");
 	const auto plainCfg = dir / "plain.yaml", surfaceCfg = dir / "surface.yaml";
 	std::ofstream(plainCfg) << y;
 	std::ofstream(surfaceCfg) << std::regex_replace(
@@ -565,7 +556,7 @@ TEST(Relocalization, AnotherTownPassingEveryOtherCheckIsRefusedOnItsFreeSpace)
 	    [&](const std::string& extra, const std::string& out, bool surface = true)
 	{
 		const auto cfg = dir / (out + ".yaml");
-		auto yaml = slamYaml();
+		auto yaml = test::shippedConfig("slam.yaml");
 		if (!surface)  // lax verification on the features instead
 		{
 			const std::regex lax("relocalization_min_inliers: 18 ");

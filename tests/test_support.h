@@ -6,7 +6,10 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <mutex>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -149,6 +152,17 @@ inline std::string bin(const std::string& name)
 inline std::string sourcePath(const std::string& rel)
 {
 	return std::string(RASTERSLAM_SOURCE_DIR) + "/" + rel;
+}
+
+/** The text of a shipped config (share/rasterslam/config/`name`) with its vocabulary path
+ *  made absolute, to be written elsewhere. */
+inline std::string shippedConfig(const std::string& name)
+{
+	std::ifstream in(sourcePath("share/rasterslam/config/" + name));
+	const std::string y((std::istreambuf_iterator<char>(in)), {});
+	EXPECT_FALSE(y.empty()) << "no config " << name;
+	return std::regex_replace(y, std::regex("vocabulary_file: \\.\\./vocab/"),
+	                          "vocabulary_file: " + sourcePath("share/rasterslam/vocab/"));
 }
 
 }  // namespace rasterslam::test

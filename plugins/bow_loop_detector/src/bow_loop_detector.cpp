@@ -158,6 +158,7 @@ void BowLoopDetector::initializeImpl(ParamReader& p)
 	polarMap_.clear();
 	trainingImages_.clear();
 	prevBow_.reset();
+	lastLoop_.reset();
 	retiring_.clear();
 	trainedOn_ = 0;
 	decisions_.clear();
@@ -273,6 +274,25 @@ uint32_t BowLoopDetector::loopKeyframes(const LocalMap& lm, const Map& map,
 	return mask;
 }
 
+cv::Mat BowLoopDetector::candidateRows(const LocalMap& lm, uint32_t keyframes,
+                                       std::vector<int>& rows)
+{
+	static_assert(LocalMap::kMaxKeyframes <= 32, "a keyframe mask is 32 bits");
+	rows.clear();
+	const std::size_t nk = lm.keyframes.size();
+	const uint32_t every = nk >= 32 ? kAllKeyframes : (1u << nk) - 1;
+	if ((keyframes & every) == every)
+		return descriptorMat(lm.descriptors);
+	cv::Mat cand(0, 32, CV_8U);
+	for (std::size_t i = 0; i < lm.points(); i++)
+		if (lm.observers[i] & keyframes)
+		{
+			rows.push_back(static_cast<int>(i));
+			cand.push_back(cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
+		}
+	return cand;
+}
+
 features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm, uint32_t seed,
                                               uint32_t keyframes, int minInliers) const
 {
@@ -280,23 +300,8 @@ features::RigidResult BowLoopDetector::verify(const Query& q, const LocalMap& lm
 	const std::size_t n = lm.points();
 	if (n == 0 || q.desc.rows == 0 || keyframes == 0)
 		return fit;
-	const std::size_t nk = std::min<std::size_t>(lm.keyframes.size(), 32);
-	const uint32_t every = nk >= 32 ? kAllKeyframes : (1u << nk) - 1;
 	std::vector<int> rows;  // local-map point of each candidate row
-	cv::Mat cand;
-	if ((keyframes & every) == every)
-		cand = descriptorMat(lm.descriptors);
-	else
-	{
-		cand.create(0, 32, CV_8U);
-		for (std::size_t i = 0; i < n; i++)
-			if (lm.observers[i] & keyframes)
-			{
-				rows.push_back(static_cast<int>(i));
-				cand.push_back(
-				    cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
-			}
-	}
+	const cv::Mat cand = candidateRows(lm, keyframes, rows);
 	const auto matches =
 	    directLevels_ > 0 && q.groups.size() == static_cast<std::size_t>(q.desc.rows)
 	        ? features::matchMutualGrouped(q.desc, cand, match_, q.groups, groupsOf(cand))
@@ -586,7 +591,7 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		lastLoop_.reset();
 	// Following the last loop: the place it closed on continues where the odometry went.
 	std::optional<LoopConstraint> followed;
-	if (!best && n > 0)
+	if (!best && n > 0 && search_ == Search::Bow)
 		if (const auto at = followedPose(kf, map, poses))
 			followed = guidedSearch(q, kf, map, poses, &*at);
 	// An anchored session also looks for the earlier sessions where it is, unless the BOW
@@ -617,8 +622,9 @@ std::vector<LoopConstraint> BowLoopDetector::detect(const KeyframeInfo& kf, cons
 		// Followed by the next keyframes when it is to this session's place.
 		const auto it = map.localMaps.find(best->localMap);
 		if (it != map.localMaps.end() && it->second->session + 1 == map.sessions)
-			lastLoop_ =
-			    LastLoop{best->from, best->to, toIsometry(best->T_from_to), it->second->session};
+			lastLoop_ = LastLoop{best->from, best->to,
+			                     followed && lastLoop_ ? lastLoop_->verifiedQuery : best->to,
+			                     toIsometry(best->T_from_to), it->second->session};
 	}
 	// Every query leaves a line, so that recall counts the keyframes that found nothing.
 	if (decisions_.size() == decisionsBefore)
@@ -809,5 +815,6 @@ void BowLoopDetector::loadPlaceIndex(const Map& map)
 	}
 	trainingImages_.clear();
 	prevBow_.reset();
+	lastLoop_.reset();
 	online_ = false;  // the map's vocabulary stays
 }

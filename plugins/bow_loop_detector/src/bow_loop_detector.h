@@ -204,11 +204,14 @@ class BowLoopDetector : public LoopDetector
 	 *  old: a place is as old as the keyframes that saw it. */
 	uint32_t loopKeyframes(const LocalMap& lm, const Map& map, const KeyframeInfo& kf) const;
 	/** Matches the query against the local map's points (only those seen by the keyframes
-	 *  in `keyframes`) and fits the rigid transform with RANSAC. */
-	/** The fit's T maps the query frame into the local map's anchor frame; its inliers are
-	 *  query feature indices. */
+	 *  in `keyframes`) and fits the rigid transform with RANSAC. The fit's T maps the query
+	 *  frame into the local map's anchor frame; its inliers are query feature indices. */
 	features::RigidResult verify(const Query& q, const LocalMap& lm, uint32_t seed,
 	                             uint32_t keyframes = kAllKeyframes, int minInliers = -1) const;
+	/** The local map's points seen by the keyframes in `keyframes`: their descriptors as
+	 *  rows, and the point of each row (`rows` empty when every point is taken, row i then
+	 *  point i). */
+	static cv::Mat candidateRows(const LocalMap& lm, uint32_t keyframes, std::vector<int>& rows);
 	/** The keyframe of `lm` (among those in `keyframes`) nearest to a pose given in the
 	 *  anchor's frame: the one a constraint to that pose is shortest from. */
 	static uint64_t nearestKeyframe(const LocalMap& lm, const Eigen::Isometry3d& T_anchor_pose,
@@ -236,23 +239,26 @@ class BowLoopDetector : public LoopDetector
 	double guidedRadius_m_ = 10.0, guidedGate_m_ = 2.0, guidedGate_deg_ = 5.0;
 	int guidedMinInliers_ = 12, guidedMaxCandidates_ = 2;
 	/** follow_loop_m: a keyframe that the BOW search closes no loop for, within this many
-	 *  metres of the last keyframe that closed one in this session, is searched for where
-	 *  that loop and the odometry since put it (guidedSearch with `followed`); 0: off. A
-	 *  revisit closes its loops one keyframe after another, and one whose candidate falls a
-	 *  few inliers short of min_inliers is otherwise lost. */
+	 *  metres of the last keyframe whose loop the BOW search verified in this session, is
+	 *  searched for where the last loop (verified or followed) and the odometry since put it
+	 *  (guidedSearch with `followed`); 0: off. A revisit closes its loops one keyframe after
+	 *  another, and one whose candidate falls a few inliers short of min_inliers is otherwise
+	 *  lost. Measured from a verified loop, so that followed loops (12 inliers, gated) cannot
+	 *  carry one another on for ever. */
 	double followLoop_m_ = 0;
 	/** The last loop closed in this session: keyframe `from` of the earlier pass, the query
-	 *  keyframe, and the query in the from keyframe's frame. */
+	 *  keyframe, the query in the from keyframe's frame, and the query keyframe of the last
+	 *  loop the BOW search verified (itself, or the one a followed loop descends from). */
 	struct LastLoop
 	{
-		uint64_t from = 0, query = 0;
+		uint64_t from = 0, query = 0, verifiedQuery = 0;
 		Eigen::Isometry3d T_from_query = Eigen::Isometry3d::Identity();
 		uint32_t session = 0;
 	};
 	std::optional<LastLoop> lastLoop_;
 	/** Where the last loop (lastLoop_) and the odometry since put keyframe kf, in the map
 	 *  frame; nullopt when there is none in this session, follow_loop_m is 0 or kf is
-	 *  farther than it from the loop's query keyframe. */
+	 *  farther than it from the last verified loop's query keyframe. */
 	std::optional<Eigen::Isometry3d> followedPose(const KeyframeInfo& kf, const Map& map,
 	                                              const PoseView& poses) const;
 	enum class Search
@@ -340,7 +346,7 @@ class BowLoopDetector : public LoopDetector
 	double groundMaxTilt_deg_ = 5.0;
 	double pointSigma_m_ = 0.2;
 
-	// state: the place index only
+	// state: the place index, and the last loop closed (lastLoop_, follow_loop_m)
 	std::shared_ptr<bow::Vocabulary> vocab_;
 	bool online_ = true;
 	std::size_t trainedOn_ = 0;  //!< local maps the online vocabulary was trained on

@@ -19,24 +19,15 @@ features::RigidResult BowLoopDetector::guidedFit(const Query& q, const LocalMap&
 	qInAnchor.reserve(q.pts.size());
 	for (const auto& p : q.pts)
 		qInAnchor.push_back(pf * p);
-	const std::size_t nk = std::min<std::size_t>(lm.keyframes.size(), 32);
-	const uint32_t every = nk >= 32 ? kAllKeyframes : (1u << nk) - 1;
-	const bool all = (keyframes & every) == every;
-	lmPts.reserve(lm.points());
-	cv::Mat cand;
-	if (all)
-		cand = cv::Mat(static_cast<int>(lm.points()), 32, CV_8U,
-		               const_cast<uint8_t*>(lm.descriptors.data()));
-	else
-		cand.create(0, 32, CV_8U);
-	for (std::size_t i = 0; i < lm.points(); i++)
-		if (all || (lm.observers[i] & keyframes))
-		{
-			lmPts.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
-			if (!all)
-				cand.push_back(
-				    cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(&lm.descriptors[32 * i])));
-		}
+	std::vector<int> rows;
+	const cv::Mat cand = candidateRows(lm, keyframes, rows);
+	const std::size_t nc = static_cast<std::size_t>(cand.rows);
+	lmPts.reserve(nc);
+	for (std::size_t r = 0; r < nc; r++)
+	{
+		const std::size_t i = rows.empty() ? r : static_cast<std::size_t>(rows[r]);
+		lmPts.emplace_back(lm.xyz[3 * i], lm.xyz[3 * i + 1], lm.xyz[3 * i + 2]);
+	}
 	features::MatchParams mp = match_;
 	mp.gateRadius_m = static_cast<float>(guidedGate_m_);
 	const auto matches = features::matchMutual(q.desc, cand, mp, &qInAnchor, &lmPts);
@@ -62,12 +53,15 @@ std::optional<Eigen::Isometry3d> BowLoopDetector::followedPose(const KeyframeInf
 		return std::nullopt;
 	const auto from = poses(lastLoop_->from);
 	const auto query = poses(lastLoop_->query);
-	if (!from || !query)
+	const auto verified = poses(lastLoop_->verifiedQuery);
+	if (!from || !query || !verified)
+		return std::nullopt;
+	if ((Eigen::Vector3d(verified->x(), verified->y(), verified->z()) -
+	     Eigen::Vector3d(kf.pose.x(), kf.pose.y(), kf.pose.z()))
+	        .norm() > followLoop_m_)
 		return std::nullopt;
 	// The odometry since the loop's keyframe: the two are this session's, drifted alike.
 	const Eigen::Isometry3d moved = toIsometry(*query).inverse() * toIsometry(kf.pose);
-	if (moved.translation().norm() > followLoop_m_)
-		return std::nullopt;
 	return toIsometry(*from) * lastLoop_->T_from_query * moved;
 }
 
@@ -96,7 +90,7 @@ std::optional<LoopConstraint> BowLoopDetector::guidedSearch(const Query& q, cons
 			continue;
 		double best = std::numeric_limits<double>::max();
 		for (std::size_t k = 0; k < lm->keyframes.size(); k++)
-			if (k >= 32 || (keyframes & (1u << k)))
+			if (keyframes & (1u << k))
 				if (const auto p = poses(lm->keyframes[k]))
 					best = std::min(best, (Eigen::Vector3d(p->x(), p->y(), p->z()) - here).norm());
 		if (best <= guidedRadius_m_)
