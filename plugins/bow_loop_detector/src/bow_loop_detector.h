@@ -229,8 +229,8 @@ class BowLoopDetector : public LoopDetector
 	                      std::size_t& bestDecision);
 	/** Once the session is anchored in a prior map (kf.inMapFrame): the earlier sessions'
 	 *  local maps within guided_radius_m of the keyframe, matched with the predicted positions
-	 *  as a gate; a fit with guided_min_inliers that agrees with the prediction is a loop. */
-	/** With `followed` (follow_loop_m): the same search among this session's local maps old
+	 *  as a gate; a fit with guided_min_inliers that agrees with the prediction is a loop.
+	 *  With `followed` (follow_loop_m): the same search among this session's local maps old
 	 *  enough to be loop candidates (their old keyframes' points only), near the keyframe's
 	 *  pose `followed` as the last loop puts it, not as the odometry does. */
 	std::optional<LoopConstraint> guidedSearch(const Query& q, const KeyframeInfo& kf,
