@@ -405,7 +405,7 @@ TEST(StrictConfig, ShippedConfigsLoadToTheSameValues)
 	}
 }
 
-TEST(StrictConfig, RefinedTrackingIsTrackingWithTheGridAndTheRefinement)
+TEST(StrictConfig, RefinedTrackingIsTrackingWithTheGridTheRefinementAndTheRobustRefit)
 {
 	// tracking-refined.yaml is what the benchmark's tracking+grid+refine rows run
 	// (scripts/benchmark.sh makes them from tracking.yaml): the same tree but for these keys.
@@ -417,6 +417,7 @@ TEST(StrictConfig, RefinedTrackingIsTrackingWithTheGridAndTheRefinement)
 	base["odometry"]["params"]["refine"] = "rotation";
 	base["odometry"]["params"]["refine_frames"] = "keyframes";
 	base["odometry"]["params"]["refine_keyframes"] = "10";
+	base["odometry"]["params"]["refit_cauchy_m"] = "0.1";
 	// (MRPT's maps are ordered by key: the trees do not depend on where a key is written.)
 	EXPECT_EQ(tree(refined), tree(base));
 }

@@ -165,6 +165,81 @@ TEST(RigidRansac, NoConsensusIsNotOk)
 	EXPECT_TRUE(features::ransacRigid(few.p, few.q, loose, 1).ok);
 }
 
+TEST(RigidRansac, RobustRefitWeighsHeightsAndMismatchesLess)
+{
+	const Eigen::Isometry3d T = motion(1.5, {1.2, 0.1, 0.02}, 0.3, -0.2);
+	const auto planarError = [&T](const Eigen::Isometry3d& E)
+	{ return (E.translation() - T.translation()).head<2>().norm(); };
+	std::mt19937 rng(17);
+	std::uniform_real_distribution<double> angle(-M_PI, M_PI), range(3, 40), height(0.5, 6),
+	    unit(0, 1);
+	std::normal_distribution<double> noise(0, 0.02);
+	// Street features: x and y good to 2 cm; a fifth of the pairs matched to the next of a
+	// row of alike things along the street (0.2 m on in x), still within the RANSAC threshold.
+	std::vector<Eigen::Vector3f> p, q;
+	for (int i = 0; i < 300; i++)
+	{
+		const double a = angle(rng), r = range(rng);
+		const Eigen::Vector3d pi(r * std::cos(a), r * std::sin(a), height(rng));
+		Eigen::Vector3d qi = T * pi + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+		if (unit(rng) < 0.2)
+			qi.x() += 0.2;
+		p.push_back(pi.cast<float>());
+		q.push_back(qi.cast<float>());
+	}
+	const features::RansacParams prm;
+	const auto plain = features::ransacRigid(p, q, prm, 5);
+	ASSERT_TRUE(plain.ok);
+	ASSERT_GT(plain.inliers.size(), 280u);  // the shifted pairs are inliers too
+
+	// Defaults (z weighed as x and y, no loss): the least-squares fit of the inliers again.
+	auto same = plain;
+	ASSERT_TRUE(features::refitRobust(p, q, features::RobustRefitParams(), prm, same));
+	Eigen::Isometry3d ls;
+	ASSERT_TRUE(features::fitRigid(p, q, plain.inliers, ls));
+	EXPECT_LT((same.T.translation() - ls.translation()).norm(), 1e-4);
+	EXPECT_LT(rotationErrorDeg(same.T, ls), 1e-4);
+
+	// The Cauchy loss discounts the mismatched fifth, which least squares follows by 4 cm.
+	features::RobustRefitParams refit;
+	refit.cauchy_m = 0.1;
+	auto robust = plain;
+	ASSERT_TRUE(features::refitRobust(p, q, refit, prm, robust));
+	ASSERT_TRUE(robust.ok);
+	EXPECT_GT(planarError(plain.T), 0.03);
+	EXPECT_LT(planarError(robust.T), 0.5 * planarError(plain.T))
+	    << planarError(robust.T) << " against " << planarError(plain.T);
+	EXPECT_LT(rotationErrorDeg(robust.T, T), 0.05);
+
+	// Heights that no rigid motion explains (a shear: 1 cm a metre of x) tilt a fit that
+	// weighs them, and the tilt moves x; weighed a thousandth, they leave x and y alone.
+	std::vector<Eigen::Vector3f> sheared;
+	features::RigidResult all;
+	all.ok = true;
+	for (int i = 0; i < 300; i++)
+	{
+		const Eigen::Vector3d pi = p[i].cast<double>();
+		Eigen::Vector3d qi = T * pi;
+		qi.z() -= 0.01 * pi.x();
+		sheared.push_back(qi.cast<float>());
+		all.inliers.push_back(i);
+	}
+	auto alike = all, light = all;
+	refit = features::RobustRefitParams();
+	ASSERT_TRUE(features::refitRobust(p, sheared, refit, prm, alike));
+	refit.zWeight = 0.001;
+	ASSERT_TRUE(features::refitRobust(p, sheared, refit, prm, light));
+	EXPECT_GT(planarError(alike.T), 0.01);
+	EXPECT_LT(planarError(light.T), 0.2 * planarError(alike.T))
+	    << planarError(light.T) << " against " << planarError(alike.T);
+
+	// A fit that is not ok is left alone.
+	auto notOk = plain;
+	notOk.ok = false;
+	EXPECT_FALSE(features::refitRobust(p, q, refit, prm, notOk));
+	EXPECT_TRUE(notOk.T.isApprox(plain.T, 0));
+}
+
 TEST(RigidRansac, PointToPointInformation)
 {
 	std::mt19937 rng(11);

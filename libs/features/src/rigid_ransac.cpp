@@ -3,6 +3,8 @@
 #include <mrpt/tfest/se3.h>
 #include <rasterslam/features/rigid_ransac.h>
 
+#include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -122,6 +124,55 @@ RigidResult ransacRigid(const std::vector<Eigen::Vector3f>& p,
 	best.rmse_m = best.inliers.empty() ? 0 : std::sqrt(sse / best.inliers.size());
 	best.ok = static_cast<int>(best.inliers.size()) >= prm.minInliers;
 	return best;
+}
+
+bool refitRobust(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
+                 const RobustRefitParams& refit, const RansacParams& prm, RigidResult& r)
+{
+	if (!r.ok || r.inliers.size() < 6 || p.size() != q.size())
+		return false;
+	const double sz = std::sqrt(std::max(refit.zWeight, 0.0));
+	const double c2 = refit.cauchy_m * refit.cauchy_m;
+	Eigen::Isometry3d T = r.T;
+	for (int it = 0; it < std::max(1, refit.iterations); it++)
+	{
+		// Residual e = T p - q, weighed as (ex, ey, sz ez); a small motion (t, w) applied on
+		// the left moves T p = a by t + w x a: d e / d(t, w) = [I, -[a]x].
+		Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+		Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+		for (int i : r.inliers)
+		{
+			const Eigen::Vector3d a = T * p[i].cast<double>();
+			Eigen::Vector3d e = a - q[i].cast<double>();
+			e.z() *= sz;
+			const double w = c2 > 0 ? 1.0 / (1.0 + e.squaredNorm() / c2) : 1.0;
+			Eigen::Matrix<double, 3, 6> J;
+			J.leftCols<3>().setIdentity();
+			J.rightCols<3>() << 0, a.z(), -a.y(), -a.z(), 0, a.x(), a.y(), -a.x(), 0;
+			J.row(2) *= sz;
+			H.noalias() += w * J.transpose() * J;
+			g.noalias() += w * J.transpose() * e;
+		}
+		const Eigen::Matrix<double, 6, 1> d = H.ldlt().solve(-g);
+		if (!d.allFinite())
+			return false;
+		Eigen::Isometry3d dT = Eigen::Isometry3d::Identity();
+		const Eigen::Vector3d w = d.tail<3>();
+		if (w.norm() > 0)
+			dT.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+		dT.translation() = d.head<3>();
+		T = dT * T;
+		if (d.head<3>().norm() < 1e-6 && w.norm() < 1e-8)
+			break;
+	}
+	if (!T.matrix().allFinite())
+		return false;
+	double sse = 0;
+	r.T = T;
+	r.inliers = selectInliers(p, q, T, prm.inlierThreshold_m, &sse);
+	r.rmse_m = r.inliers.empty() ? 0 : std::sqrt(sse / r.inliers.size());
+	r.ok = static_cast<int>(r.inliers.size()) >= prm.minInliers;
+	return true;
 }
 
 Eigen::Matrix<double, 6, 6> pointToPointInformation(const std::vector<Eigen::Vector3f>& pts,

@@ -72,6 +72,9 @@ class OrbOdometry : public Odometry
 	features::OrbParams orbParams_;
 	features::MatchParams match_;
 	features::RansacParams ransac_;
+	/** refit_z_weight, refit_cauchy_m: the RANSAC fit refitted on its inliers with the
+	 *  features' heights weighed less and a Cauchy loss (both off by default). */
+	features::RobustRefitParams refit_;
 	int kfMinFrames_ = 5, kfMinShared_ = 100, kfMaxFrames_ = 20;
 	int weakInliers_ = 30;
 	double maxStep_m_ = 5.0, sigma_m_ = 0.1;
@@ -155,6 +158,9 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	ransac_.confidence = p.getDouble("ransac_confidence", 0.999);
 	ransac_.minInliers = p.getInt("min_inliers", 20);
 	ransac_.refinements = p.getInt("refinements", 3);
+	refit_ = features::RobustRefitParams();
+	refit_.zWeight = p.getDouble("refit_z_weight", refit_.zWeight);
+	refit_.cauchy_m = p.getDouble("refit_cauchy_m", refit_.cauchy_m);
 	kfMinFrames_ = p.getInt("keyframe_min_frames", kfMinFrames_);
 	kfMinShared_ = p.getInt("keyframe_min_shared", kfMinShared_);
 	kfMaxFrames_ = p.getInt("keyframe_max_frames", kfMaxFrames_);
@@ -237,6 +243,8 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	          "ransac_confidence", "must be in (0, 1)");
 	p.requireAtLeast(ransac_.minInliers, 3, "min_inliers");  // a rigid fit takes 3 points
 	p.requireAtLeast(ransac_.refinements, 0, "refinements");
+	p.requireRange(refit_.zWeight, 0.001, 1, "refit_z_weight");
+	p.requireRange(refit_.cauchy_m, 0, 10, "refit_cauchy_m");
 	p.requirePositive(kfMinFrames_, "keyframe_min_frames");
 	p.requireAtLeast(kfMinShared_, 0, "keyframe_min_shared");
 	p.requirePositive(kfMaxFrames_, "keyframe_max_frames");
@@ -317,6 +325,8 @@ features::RigidResult OrbOdometry::track(const Frame& ref, const Frame& cur,
 	}
 	auto r =
 	    features::ransacRigid(p, q, ransac_, static_cast<uint32_t>(seed * 2 + (gated ? 0 : 1)));
+	if (refit_.zWeight != 1.0 || refit_.cauchy_m > 0)
+		features::refitRobust(p, q, refit_, ransac_, r);
 	// Express inlier indices in the current frame's feature numbering.
 	for (auto& i : r.inliers)
 		i = matches[i].a;

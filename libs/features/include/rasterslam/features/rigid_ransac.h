@@ -40,6 +40,27 @@ RigidResult ransacRigid(const std::vector<Eigen::Vector3f>& p,
                         const std::vector<Eigen::Vector3f>& q, const RansacParams& prm,
                         uint32_t seed);
 
+/** How refitRobust weighs the inlier pairs of a rigid fit. */
+struct RobustRefitParams
+{
+	/** Weight of a residual's z component against x and y (1: all alike). The heights of
+	 *  features found on an elevation image are biased: a pixel keeps the highest point a beam
+	 *  reached, which changes with the range a wall or tree is seen from. */
+	double zWeight = 1.0;
+	/** Cauchy scale of the (weighed) residuals, m: a pair this far off counts half; 0: least
+	 *  squares, every inlier alike. */
+	double cauchy_m = 0.0;
+	int iterations = 10;  //!< Gauss-Newton steps at most
+};
+
+/** Refits r.T on r's inlier pairs (q = T p): Gauss-Newton on SE(3) minimising the Cauchy
+ *  loss of the residuals T p - q, each with its z component weighed by zWeight, started from
+ *  r.T; then selects the inliers again (prm.inlierThreshold_m) and sets rmse_m, and ok when
+ *  at least prm.minInliers remain. Nothing changes (false) when r is not ok, has fewer than 6
+ *  inliers, or the solve leaves no finite pose. */
+bool refitRobust(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
+                 const RobustRefitParams& refit, const RansacParams& prm, RigidResult& r);
+
 /** Information matrix (6x6, MRPT order x y z yaw pitch roll) of a pose estimated from
  *  point-to-point residuals with isotropic noise sigma_m at the given points (in the frame
  *  the pose moves). */
