@@ -16,6 +16,7 @@ cfgdir="$here/share/rasterslam/config"
 for p in rasterslam rasterslam-eval rasterslam-sim kitti2rawlog; do
   [ -x "$bin/$p" ] || { echo "benchmark-refit: $bin/$p not built (make build)" >&2; exit 1; }
 done
+command -v jq >/dev/null || { echo "benchmark-refit: jq not found (scripts/install-deps.sh)" >&2; exit 1; }
 mkdir -p "$WORK"
 cd "$WORK"
 
@@ -25,7 +26,7 @@ drives=("town-kitti rawlogs/town-kitti.yaml 0 150"
         "town-loop rawlogs/town-loop.yaml 0 560"
         "town-loop-s2 rawlogs/town-loop.yaml 2 400"
         "town-loop-s3 rawlogs/town-loop.yaml 3 400"
-        "town-vlp16 rawlogs/town-vlp16.yaml 0 401"
+        "town-vlp16 rawlogs/town-vlp16.yaml 0 400"
         "town-vlp16-s2 rawlogs/town-vlp16.yaml 2 400"
         "town-vlp16-s3 rawlogs/town-vlp16.yaml 3 400")
 for d in "${drives[@]}"; do
@@ -51,10 +52,14 @@ variant() {
   if grep -q "refit_cauchy_m:" "$cfgdir/$1"; then
     sed "s/refit_cauchy_m: [0-9.]*/refit_cauchy_m: $2/" "$cfgdir/$1" > "$out"
   else
-    awk -v c="$2" '{print} /class: rasterslam::OrbOdometry/ {o=1} o && /^  params:/ {print "    refit_cauchy_m: " c; o=0}' \
-      "$cfgdir/$1" > "$out"
+    # under the odometry's params: (not another role's, should the odometry have none)
+    awk -v c="$2" '/^[a-z_]+:/ {o = ($1 == "odometry:")} {print}
+      o && /^  params:/ {print "    refit_cauchy_m: " c; o = 0; done = 1}
+      END {exit !done}' "$cfgdir/$1" > "$out" ||
+      { echo "benchmark-refit: $1 has no odometry params to add refit_cauchy_m to" >&2; exit 1; }
   fi
-  grep -q "refit_cauchy_m: $2\b" "$out" || { echo "benchmark-refit: could not set refit_cauchy_m in $out" >&2; exit 1; }
+  grep -Eq "^    refit_cauchy_m: ${2//./\\.}( |$)" "$out" ||
+    { echo "benchmark-refit: could not set refit_cauchy_m: $2 in $out" >&2; exit 1; }
   echo "$out"
 }
 # score NAME CONFIG SEGMENTS: "RTE RRE ATE MS"
@@ -65,7 +70,7 @@ score() {
     { echo "benchmark-refit: rasterslam run $1 with $2 failed" >&2; exit 1; }
   "$bin/rasterslam-eval" traj --gt "$out/groundtruth.tum" --est "$out/trajectory.tum" --segments "$3" --json |
     jq -r --arg ms "$(sed -n 's/^ *ms_per_scan_median: *//p' "$out/run.yaml")" \
-      '"\(.rel_trans_pct) \(.rel_rot_deg_per_m) \(.ate_rmse_m) \($ms)"'
+      'if .rel_trans_pct == null then error("no segments") else "\(.rel_trans_pct) \(.rel_rot_deg_per_m) \(.ate_rmse_m) \($ms)" end'
 }
 for base in tracking-refined.yaml tracking.yaml; do
   off=$(variant "$base" 0); on=$(variant "$base" 0.1)
@@ -78,8 +83,10 @@ for base in tracking-refined.yaml tracking.yaml; do
   sum0=0; sum1=0; better=0
   for n in "${names[@]}"; do
     seg=50:200:50; [ "$n" = "$kitti" ] && seg=10:80:10
-    read -r t0 r0 a0 m0 <<<"$(score "$n" "$off" "$seg")"
-    read -r t1 r1 a1 m1 <<<"$(score "$n" "$on" "$seg")"
+    # (assigned first: a failed run must stop the script, not read as zeros)
+    s0=$(score "$n" "$off" "$seg") && s1=$(score "$n" "$on" "$seg") || exit 1
+    read -r t0 r0 a0 m0 <<<"$s0"
+    read -r t1 r1 a1 m1 <<<"$s1"
     printf '  %-16s %7.3f -> %-7.3f %8.4f -> %-8.4f %7.3f -> %-7.3f %5.1f -> %-5.1f\n' "$n" "$t0" "$t1" "$r0" "$r1" "$a0" "$a1" "$m0" "$m1"
     if [ "$n" != "$kitti" ]; then
       sum0=$(awk -v a="$sum0" -v b="$t0" 'BEGIN {print a + b}'); sum1=$(awk -v a="$sum1" -v b="$t1" 'BEGIN {print a + b}')

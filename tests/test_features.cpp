@@ -233,11 +233,25 @@ TEST(RigidRansac, RobustRefitWeighsHeightsAndMismatchesLess)
 	EXPECT_LT(planarError(light.T), 0.2 * planarError(alike.T))
 	    << planarError(light.T) << " against " << planarError(alike.T);
 
-	// A fit that is not ok is left alone.
+	// A fit that is not ok, or of fewer than 6 inliers, is left alone; so is one whose refit
+	// would keep fewer than minInliers: RANSAC's fit stands, still ok.
+	refit.zWeight = 1;
+	refit.cauchy_m = 0.1;
 	auto notOk = plain;
 	notOk.ok = false;
 	EXPECT_FALSE(features::refitRobust(p, q, refit, prm, notOk));
 	EXPECT_TRUE(notOk.T.isApprox(plain.T, 0));
+	auto five = plain;
+	five.inliers.resize(5);
+	EXPECT_FALSE(features::refitRobust(p, q, refit, prm, five));
+	EXPECT_TRUE(five.T.isApprox(plain.T, 0));
+	features::RansacParams strict = prm;
+	strict.minInliers = static_cast<int>(p.size()) + 1;
+	auto kept = plain;
+	EXPECT_FALSE(features::refitRobust(p, q, refit, strict, kept));
+	EXPECT_TRUE(kept.ok);
+	EXPECT_TRUE(kept.T.isApprox(plain.T, 0));
+	EXPECT_EQ(kept.inliers, plain.inliers);
 }
 
 TEST(RigidRansac, PointToPointInformation)

@@ -773,7 +773,7 @@ TEST(OrbOdometry, RobustRefitLowersTheRefinedTrackingsErrorOnTheTown)
 	// rawlogs/town-loop.yaml (560 HDL-64E scans), tracking-refined.yaml as shipped (the
 	// features' fit refitted on its inliers with a Cauchy loss, refit_cauchy_m: 0.1) against
 	// the same with least squares (0). Measured on 50..200 m segments (scripts/benchmark-refit.sh):
-	// RTE 0.584 -> 0.316 %, RRE 0.0034 -> 0.0009 deg/m, ATE 0.414 -> 0.224 m.
+	// RTE 0.584 -> 0.316 %, RRE 0.0034 -> 0.0009 deg/m, ATE 0.413 -> 0.224 m.
 	const auto sc = sim::loadScenario(test::sourcePath("rawlogs/town-loop.yaml"));
 	const std::size_t n = sc.scans;
 	ASSERT_EQ(n, 560u);

@@ -133,6 +133,18 @@ bool refitRobust(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen:
 		return false;
 	const double sz = std::sqrt(std::max(refit.zWeight, 0.0));
 	const double c2 = refit.cauchy_m * refit.cauchy_m;
+	// The loss minimised, over the inliers the refit starts from.
+	const auto cost = [&](const Eigen::Isometry3d& T)
+	{
+		double c = 0;
+		for (int i : r.inliers)
+		{
+			Eigen::Vector3d e = T * p[i].cast<double>() - q[i].cast<double>();
+			e.z() *= sz;
+			c += c2 > 0 ? c2 * std::log1p(e.squaredNorm() / c2) : e.squaredNorm();
+		}
+		return c;
+	};
 	Eigen::Isometry3d T = r.T;
 	for (int it = 0; it < std::max(1, refit.iterations); it++)
 	{
@@ -165,13 +177,17 @@ bool refitRobust(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen:
 		if (d.head<3>().norm() < 1e-6 && w.norm() < 1e-8)
 			break;
 	}
-	if (!T.matrix().allFinite())
+	// A step that made the loss worse (a nearly singular system solves to a large finite
+	// step), or a fit that would keep too few inliers, leaves RANSAC's fit as it was.
+	if (!T.matrix().allFinite() || !(cost(T) <= cost(r.T) * (1 + 1e-9) + 1e-12))
 		return false;
 	double sse = 0;
+	auto inliers = selectInliers(p, q, T, prm.inlierThreshold_m, &sse);
+	if (static_cast<int>(inliers.size()) < std::max(3, prm.minInliers))
+		return false;
 	r.T = T;
-	r.inliers = selectInliers(p, q, T, prm.inlierThreshold_m, &sse);
-	r.rmse_m = r.inliers.empty() ? 0 : std::sqrt(sse / r.inliers.size());
-	r.ok = static_cast<int>(r.inliers.size()) >= prm.minInliers;
+	r.inliers = std::move(inliers);
+	r.rmse_m = std::sqrt(sse / r.inliers.size());
 	return true;
 }
 

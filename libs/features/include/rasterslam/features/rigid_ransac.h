@@ -43,7 +43,8 @@ RigidResult ransacRigid(const std::vector<Eigen::Vector3f>& p,
 /** How refitRobust weighs the inlier pairs of a rigid fit. */
 struct RobustRefitParams
 {
-	/** Weight of a residual's z component against x and y (1: all alike). The heights of
+	/** Weight of a residual's squared z component against x's and y's (1: all alike; the z
+	 *  component is scaled by its square root). The heights of
 	 *  features found on an elevation image are biased: a pixel keeps the highest point a beam
 	 *  reached, which changes with the range a wall or tree is seen from. */
 	double zWeight = 1.0;
@@ -54,10 +55,11 @@ struct RobustRefitParams
 };
 
 /** Refits r.T on r's inlier pairs (q = T p): Gauss-Newton on SE(3) minimising the Cauchy
- *  loss of the residuals T p - q, each with its z component weighed by zWeight, started from
- *  r.T; then selects the inliers again (prm.inlierThreshold_m) and sets rmse_m, and ok when
- *  at least prm.minInliers remain. Nothing changes (false) when r is not ok, has fewer than 6
- *  inliers, or the solve leaves no finite pose. */
+ *  loss of the residuals T p - q, each with its squared z component weighed by zWeight,
+ *  started from r.T; then selects the inliers again (prm.inlierThreshold_m) and sets rmse_m.
+ *  Nothing changes (false) when r is not ok or has fewer than 6 inliers, when the solve
+ *  leaves no finite pose or a larger loss than r.T's, or when fewer than prm.minInliers
+ *  inliers would remain: r stays RANSAC's fit, still ok. */
 bool refitRobust(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>& q,
                  const RobustRefitParams& refit, const RansacParams& prm, RigidResult& r);
 
