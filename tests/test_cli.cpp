@@ -57,7 +57,8 @@ const std::vector<Program> kPrograms = {
      {"--velodyne", "--sequence", "--out", "--poses", "--calib", "--times", "--first", "--last",
       "--external", "--compress", "--vertical-correction-deg"}},
     {"rasterslam-sim",
-     {"--scenario", "--out", "--scans", "--seed", "--lidar", "--compress", "--gt-tum"}},
+     {"--scenario", "--out", "--scans", "--seed", "--lidar", "--sensor-height", "--compress",
+      "--gt-tum"}},
     {"rasterslam-vocab", {"train", "info", "bench"}},
     {"rasterslam-map-export", {"DIR", "--out"}},
     {"rasterslam-bench-map-store", {"--local-maps", "--points"}},
@@ -196,6 +197,10 @@ TEST(Cli, BadValuesAreUsageErrors)
 	                 "--seed");
 	expectUsageError(stderrOf("rasterslam-sim", sim + "--compress x"), "rasterslam-sim",
 	                 "--compress");
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--sensor-height 0"), "rasterslam-sim",
+	                 "--sensor-height");
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--sensor-height nan"), "rasterslam-sim",
+	                 "--sensor-height");
 
 	const auto train = "train --images " + d + " -o " + d + "/v.bin ";
 	expectUsageError(stderrOf("rasterslam-vocab", train + "--branching 1"),

@@ -12,6 +12,7 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <future>
 #include <iostream>
@@ -36,6 +37,7 @@ struct Args
 	bool sameOnly = false;
 	std::optional<long long> scans, seed;
 	std::optional<std::string> lidar;
+	std::optional<double> sensorHeight_m;
 	int compress = 0;
 	// revisit truth against earlier sessions
 	std::vector<std::string> revisitsOf;
@@ -171,6 +173,8 @@ int run(const Args& args)
 		sc.seed = static_cast<std::uint32_t>(*args.seed);
 	if (args.lidar)
 		sc.lidar = *args.lidar;
+	if (args.sensorHeight_m)
+		sc.sensor_height_m = *args.sensorHeight_m;
 	sim::validateScenario(sc);
 	checkWritable(args.out);
 	if (!args.gtTum.empty())
@@ -318,6 +322,19 @@ int main(int argc, char** argv)
 	app.add_option("--lidar", args.lidar, "override the LiDAR model: hdl64 | hdl64e | vlp16")
 	    ->check(CLI::IsMember({"hdl64", "hdl64e", "vlp16"}).description(""))
 	    ->type_name("NAME");
+	const CLI::Validator height(
+	    [](std::string& v) -> std::string
+	    {
+		    char* end = nullptr;
+		    const double h = std::strtod(v.c_str(), &end);
+		    const bool ok = !v.empty() && end == v.c_str() + v.size() && h > 0 && h < 10;
+		    return ok ? std::string() : "expects a height in (0, 10) m, got '" + v + "'";
+	    },
+	    "");
+	app.add_option("--sensor-height", args.sensorHeight_m,
+	               "override the scenario's sensor height above the ground (m, in (0, 10))")
+	    ->check(height)
+	    ->type_name("M");
 	app.add_option("--compress", args.compress,
 	               "gzip level 0..9 (default 0: a plain file, which reads ~25x faster than gzip; "
 	               "1..9 for smaller files)")
@@ -349,10 +366,11 @@ int main(int argc, char** argv)
 		return rc;
 	if (args.scenario.empty() && args.kitti.empty())
 		cli::usageError("rasterslam-sim", "give --scenario FILE or --kitti DIR");
-	if (!args.kitti.empty() && (args.scans || args.seed || args.lidar))
+	if (!args.kitti.empty() && (args.scans || args.seed || args.lidar || args.sensorHeight_m))
 		cli::usageError("rasterslam-sim",
-		                "--scans, --seed and --lidar belong to --scenario: --kitti renders the "
-		                "measured HDL-64E at the poses of --at or of the revisit grid");
+		                "--scans, --seed, --lidar and --sensor-height belong to --scenario: "
+		                "--kitti renders the measured HDL-64E at the poses of --at or of the "
+		                "revisit grid");
 
 	// Debian links with --as-needed: without these calls the classes are not registered.
 	mrpt::maps::registerAllClasses_mrpt_maps();

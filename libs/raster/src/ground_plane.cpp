@@ -1,7 +1,10 @@
 #include <rasterslam/raster/ground_plane.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <optional>
 #include <random>
 
 namespace rasterslam::raster
@@ -33,14 +36,80 @@ Plane planeFromPoints(const std::vector<Eigen::Vector3f>& pts)
 	pl.valid = true;
 	return pl;
 }
+
+/** Where a scan's ground candidates end when its ground lies above the fixed bound. */
+struct RaisedBound
+{
+	double maxZ_m = 0;
+	/** Candidates nearer than this horizontally are left out (the vehicle's own returns,
+	 *  which the raised bound would otherwise admit). */
+	double minRange_m = 0;
+};
+
+/** The raised bound of candidates, or nullopt when the fixed one stands. Over an even sample
+ *  of about 16,000 of the points 2.5 m (past the vehicle) to candidateMaxRange_m away
+ *  horizontally and within 20 m of the frame's origin in height: when under 10 % of them lie
+ *  below candidateMaxZ_m (a ground there holds far more: about half of a KITTI scan's), the
+ *  bound becomes the top of the lowest 0.2 m layer of heights holding at least 30 % of the
+ *  points of the fullest one, plus layerMargin_m, at most 1 m above the origin, when that top
+ *  lies above the fixed bound. */
+std::optional<RaisedBound> raisedBound(const std::vector<PointXYZI>& pts, const GroundParams& prm)
+{
+	constexpr double kBin_m = 0.2, kLow_m = -20, kHigh_m = 20, kNear_m = 2.5, kCap_m = 1.0;
+	constexpr int kBins = static_cast<int>((kHigh_m - kLow_m) / kBin_m);
+	std::array<uint32_t, kBins> count{};
+	const float r2Max = static_cast<float>(prm.candidateMaxRange_m * prm.candidateMaxRange_m),
+	            r2Min = static_cast<float>(kNear_m * kNear_m);
+	// A prime stride, so that a cloud whose points are interleaved ring by ring (one of each
+	// of 16 to 128 rings at every azimuth) is sampled on every ring: every 7th point of a
+	// KITTI scan's 120,000.
+	std::size_t stride = 1;
+	for (const std::size_t s : {3, 7, 13, 31, 61})
+		if (pts.size() / 16384 >= s)
+			stride = s;
+	uint32_t inRange = 0, below = 0;
+	for (std::size_t i = 0; i < pts.size(); i += stride)
+	{
+		const auto& p = pts[i];
+		const float r2 = p.x * p.x + p.y * p.y;
+		if (!(r2 >= r2Min && r2 < r2Max && p.z >= kLow_m && p.z < kHigh_m))
+			continue;  // also NaN and inf
+		inRange++;
+		below += p.z < prm.candidateMaxZ_m;
+		const int b = std::min(kBins - 1, static_cast<int>((p.z - kLow_m) / kBin_m));
+		count[static_cast<std::size_t>(b)]++;
+	}
+	if (inRange == 0 || 10 * below >= inRange)
+		return std::nullopt;
+	const uint32_t most = *std::max_element(count.begin(), count.end());
+	for (int b = 0; b < kBins; b++)
+		if (10 * count[static_cast<std::size_t>(b)] >= 3 * most)
+		{
+			// Only a layer that reaches above the bound raises it (a sensor at 1.2-1.4 m, whose
+			// layer tops out just below, keeps its candidates).
+			const double top = kLow_m + (b + 1) * kBin_m;
+			if (top <= prm.candidateMaxZ_m)
+				return std::nullopt;
+			return RaisedBound{std::min(kCap_m, top + prm.layerMargin_m), kNear_m};
+		}
+	return std::nullopt;
+}
 }  // namespace
 
 Plane fitGroundPlane(const std::vector<PointXYZI>& pts, const GroundParams& prm, uint32_t seed)
 {
 	std::vector<Eigen::Vector3f> cand;
 	const double r2 = prm.candidateMaxRange_m * prm.candidateMaxRange_m;
+	double maxZ = prm.candidateMaxZ_m, minR2 = 0;
+	if (prm.layerMargin_m > 0)
+		if (const auto raised = raisedBound(pts, prm))
+		{
+			maxZ = raised->maxZ_m;
+			minR2 = raised->minRange_m * raised->minRange_m;
+		}
 	for (const auto& p : pts)
-		if (p.z < prm.candidateMaxZ_m && double(p.x) * p.x + double(p.y) * p.y < r2)
+		if (const double pr2 = double(p.x) * p.x + double(p.y) * p.y;
+		    p.z < maxZ && pr2 < r2 && pr2 >= minR2)
 			cand.emplace_back(p.x, p.y, p.z);
 	if (cand.size() > static_cast<std::size_t>(prm.maxCandidates))
 	{

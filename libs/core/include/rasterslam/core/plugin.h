@@ -22,8 +22,9 @@
  *  they pass. Raised with every change of them: PluginLoader refuses a module built for
  *  another, which would call the wrong functions. 1: the first marked (polar contexts in
  *  relocalizeScan and placeContextOf, LoopDetector::usesScanContexts). 2: bow::Database's
- *  inverted index a table by word (its size changed). */
-#define RASTERSLAM_PLUGIN_ABI 2
+ *  inverted index a table by word (its size changed). 3: raster::GroundParams gained
+ *  layerMargin_m (its size changed). */
+#define RASTERSLAM_PLUGIN_ABI 3
 
 /** The plugin ABI a module was built for. Defined (weak: once a module, however many of its
  *  files include this header) in every module that includes plugin.h; PluginLoader reads a

@@ -17,6 +17,15 @@ struct GroundParams
 	 *  candidates: the ground near the vehicle. */
 	double candidateMaxZ_m = -1.0;
 	double candidateMaxRange_m = 30.0;
+	/** A sensor mounted lower than candidateMaxZ_m assumes (a small robot), or points in a
+	 *  vehicle frame whose origin is on the ground, put the ground above that bound. When
+	 *  under 10 % of the scan's points 2.5 to candidateMaxRange_m away lie below the bound (a
+	 *  ground there holds far more) and the top of their lowest dense layer of heights (0.2 m
+	 *  bins; the lowest holding 30 % of the fullest one's points) lies above it, the bound is
+	 *  raised to this much above that top, at most to 1 m above the origin, and candidates
+	 *  nearer than 2.5 m (the vehicle's own returns) are left out. Otherwise nothing changes.
+	 *  0: the bound fixed. */
+	double layerMargin_m = 0.3;
 	/** The plane is fitted on at most this many candidates (an even subsample). */
 	int maxCandidates = 1500;
 	int iterations = 60;
