@@ -201,6 +201,19 @@ TEST(Cli, BadValuesAreUsageErrors)
 	                 "--sensor-height");
 	expectUsageError(stderrOf("rasterslam-sim", sim + "--sensor-height nan"), "rasterslam-sim",
 	                 "--sensor-height");
+	// The shared number check (cli::numberIn) names the interval, open or closed, and reads
+	// the whole text as one finite number.
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--sensor-height 10"), "rasterslam-sim",
+	                 "expects a height in metres in (0, 10), got '10'");
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--sensor-height 1.5m"), "rasterslam-sim",
+	                 "got '1.5m'");
+	expectUsageError(stderrOf("rasterslam-sim", sim + "--sensor-height 1e400"), "rasterslam-sim",
+	                 "got '1e400'");
+	expectUsageError(stderrOf("kitti2rawlog", kitti + "--vertical-correction-deg -5.5"),
+	                 "kitti2rawlog", "expects a number of degrees in [-5, 5], got '-5.5'");
+	expectUsageError(stderrOf("rasterslam-eval", "traj --gt " + d + "/scenario.yaml --est " + d +
+	                                                 "/scenario.yaml --max-dt -0.5"),
+	                 "rasterslam-eval traj", "expects a number >= 0, got '-0.5'");
 
 	const auto train = "train --images " + d + " -o " + d + "/v.bin ";
 	expectUsageError(stderrOf("rasterslam-vocab", train + "--branching 1"),

@@ -82,21 +82,12 @@ int main(int argc, char** argv)
 	               "1..9 for smaller files)")
 	    ->check(CLI::Range(0, 9).description(""))
 	    ->type_name("L");
-	const CLI::Validator degrees(
-	    [](std::string& v) -> std::string
-	    {
-		    char* end = nullptr;
-		    const double d = std::strtod(v.c_str(), &end);
-		    const bool ok = !v.empty() && end == v.c_str() + v.size() && std::abs(d) <= 5;
-		    return ok ? std::string() : "expects a number of degrees in [-5, 5], got '" + v + "'";
-	    },
-	    "");
 	app.add_option("--vertical-correction-deg", verticalCorrection_deg,
 	               "raise every point's elevation by D degrees, D in [-5, 5] (rotation about the "
 	               "horizontal axis across its azimuth): the known HDL-64 calibration error of "
 	               "the KITTI scans is 0.205 deg (default 0: points as recorded; not with "
 	               "--external)")
-	    ->check(degrees)
+	    ->check(cli::numberIn(-5, 5, "a number of degrees"))
 	    ->excludes(externalOpt)
 	    ->type_name("D");
 	// Exactly one of the two says where the scans are.

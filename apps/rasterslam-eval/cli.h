@@ -16,6 +16,7 @@
 #include <functional>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -74,16 +75,7 @@ Command addScene(CLI::App& app);
 /** A finite number >= 0. */
 inline CLI::Validator nonNegativeNumber()
 {
-	return CLI::Validator(
-	    [](std::string& s) -> std::string
-	    {
-		    char* end = nullptr;
-		    const double v = std::strtod(s.c_str(), &end);
-		    if (s.empty() || *end != '\0' || !std::isfinite(v) || v < 0)
-			    return "expected a non-negative number, got '" + s + "'";
-		    return {};
-	    },
-	    "");
+	return rasterslam::cli::numberIn(0, std::numeric_limits<double>::infinity(), "a number");
 }
 
 /** A whole number in [min, max] (digits only: no sign, no exponent). */

@@ -12,7 +12,6 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <future>
 #include <iostream>
@@ -322,18 +321,9 @@ int main(int argc, char** argv)
 	app.add_option("--lidar", args.lidar, "override the LiDAR model: hdl64 | hdl64e | vlp16")
 	    ->check(CLI::IsMember({"hdl64", "hdl64e", "vlp16"}).description(""))
 	    ->type_name("NAME");
-	const CLI::Validator height(
-	    [](std::string& v) -> std::string
-	    {
-		    char* end = nullptr;
-		    const double h = std::strtod(v.c_str(), &end);
-		    const bool ok = !v.empty() && end == v.c_str() + v.size() && h > 0 && h < 10;
-		    return ok ? std::string() : "expects a height in (0, 10) m, got '" + v + "'";
-	    },
-	    "");
 	app.add_option("--sensor-height", args.sensorHeight_m,
 	               "override the scenario's sensor height above the ground (m, in (0, 10))")
-	    ->check(height)
+	    ->check(cli::numberIn(0, 10, "a height in metres", cli::Ends::Open))
 	    ->type_name("M");
 	app.add_option("--compress", args.compress,
 	               "gzip level 0..9 (default 0: a plain file, which reads ~25x faster than gzip; "

@@ -11,6 +11,8 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -115,6 +117,46 @@ inline CLI::Validator unnamed(CLI::Validator v)
 {
 	v.description("");
 	return v;
+}
+
+/** Which ends of numberIn()'s interval belong to it. */
+enum class Ends
+{
+	Closed,  //!< [lo, hi]
+	Open     //!< (lo, hi)
+};
+
+/** A number's text in a message: up to 6 significant digits ("10", "0.205", "inf"). */
+inline std::string numberWord(double v)
+{
+	char buf[32];
+	std::snprintf(buf, sizeof(buf), "%.6g", v);
+	return buf;
+}
+
+/** A CLI11 check: the whole text is one finite number (strtod's syntax; not NaN, not inf)
+ *  in the interval from lo to hi, whose ends `ends` says; hi may be infinite (no upper
+ *  bound). The message names `what` and the interval: "expects a height in metres in (0, 10),
+ *  got '0'", "expects a number >= 0, got '-1'". Failures are usage errors (exit 2). */
+inline CLI::Validator numberIn(double lo, double hi, const std::string& what,
+                               Ends ends = Ends::Closed)
+{
+	const bool open = ends == Ends::Open;
+	const std::string interval = std::isinf(hi)
+	                                 ? std::string(open ? " > " : " >= ") + numberWord(lo)
+	                                 : std::string(open ? " in (" : " in [") + numberWord(lo) +
+	                                       ", " + numberWord(hi) + (open ? ")" : "]");
+	return CLI::Validator(
+	    [=](std::string& v) -> std::string
+	    {
+		    char* end = nullptr;
+		    const double x = std::strtod(v.c_str(), &end);
+		    const bool number = !v.empty() && end == v.c_str() + v.size() && std::isfinite(x);
+		    const bool inside = open ? x > lo && x < hi : x >= lo && x <= hi;
+		    return number && inside ? std::string()
+		                            : "expects " + what + interval + ", got '" + v + "'";
+	    },
+	    "");
 }
 
 /** An input index such as --first/--last: a whole number >= 0 (negative values are usage
