@@ -13,7 +13,9 @@
 # keep every height).
 # LAPS=K makes every session K times longer (its route driven K times over): LAPS=4 is the
 # long lifelong scenario, about 21,000 scans over the ten sessions.
-# usage: scripts/benchmark-sessions.sh     (env: BUILD, WORK, STATIC, CONFIG, LAPS)
+# VLP16_HEIGHT=M mounts the VLP-16 of sessions 2, 4, ... M metres above the ground (a small
+# robot; the HDL-64E stays at 1.73 m): a map whose sessions see the town from two heights.
+# usage: scripts/benchmark-sessions.sh     (env: BUILD, WORK, STATIC, CONFIG, LAPS, VLP16_HEIGHT)
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 BUILD="${BUILD:-$here/build}"
@@ -42,6 +44,9 @@ EOF
 }
 STATIC="${STATIC:-0}"
 LAPS="${LAPS:-1}"
+VLP16_HEIGHT="${VLP16_HEIGHT:-}"
+[ -z "$VLP16_HEIGHT" ] || [[ "$VLP16_HEIGHT" =~ ^[0-9]*\.?[0-9]+$ ]] ||
+  { echo "benchmark-sessions: VLP16_HEIGHT must be a height in metres" >&2; exit 2; }
 [[ "$LAPS" =~ ^[1-9][0-9]*$ ]] || { echo "benchmark-sessions: LAPS must be a whole number >= 1" >&2; exit 2; }
 # scenario N SEED LIDAR SCANS WAYPOINTS: one session's scenario file (stamps a day apart).
 scenario() {
@@ -54,6 +59,7 @@ scenario() {
     echo "speed_mps: 8"
     echo "start_stamp_s: $((1700000000 + 86400 * $1))"
     echo "route: {waypoints: $5, closed: true, turn_radius_m: 6}"
+    [ "$3" = vlp16 ] && [ -n "$VLP16_HEIGHT" ] && echo "sensor_height_m: $VLP16_HEIGHT"
     if [ "$STATIC" != 1 ]; then
       echo "epoch: $(($1 - 1))"
       echo "traffic: {cars: 8, pedestrians: 20}"
