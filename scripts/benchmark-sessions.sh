@@ -21,6 +21,13 @@ here="$(cd "$(dirname "$0")/.." && pwd)"
 BUILD="${BUILD:-$here/build}"
 WORK="${WORK:-$BUILD/bench-sessions}"
 bin="$BUILD/bin"
+# Checked before anything is removed: the simulator takes heights in (0, 10) m.
+VLP16_HEIGHT="${VLP16_HEIGHT:-}"
+if [ -n "$VLP16_HEIGHT" ] && ! { [[ "$VLP16_HEIGHT" =~ ^[0-9]*\.?[0-9]+$ ]] &&
+  awk -v h="$VLP16_HEIGHT" 'BEGIN { exit !(h > 0 && h < 10) }'; }; then
+  echo "benchmark-sessions: VLP16_HEIGHT must be a height in metres, in (0, 10)" >&2
+  exit 2
+fi
 rm -rf "$WORK"
 mkdir -p "$WORK"
 
@@ -31,7 +38,7 @@ CONFIG="${CONFIG:-lifelong}"
 cfg="$WORK/$CONFIG.yaml"
 sed -e "s#vocabulary_file: ../vocab/#vocabulary_file: $here/share/rasterslam/vocab/#" \
   "$here/share/rasterslam/config/$CONFIG.yaml" > "$cfg"
-echo "config: share/rasterslam/config/$CONFIG.yaml; world: $([ "${STATIC:-0}" = 1 ] && echo static || echo "changing (session n at epoch n-1, 8 cars and 20 people moving)")"
+echo "config: share/rasterslam/config/$CONFIG.yaml; world: $([ "${STATIC:-0}" = 1 ] && echo static || echo "changing (session n at epoch n-1, 8 cars and 20 people moving)")$([ -n "$VLP16_HEIGHT" ] && echo "; VLP-16 $VLP16_HEIGHT m above the ground")"
 
 # The town of rawlogs/town-loop.yaml: 3 x 2 blocks of 50 m, streets every 64 m.
 town() {
@@ -44,9 +51,6 @@ EOF
 }
 STATIC="${STATIC:-0}"
 LAPS="${LAPS:-1}"
-VLP16_HEIGHT="${VLP16_HEIGHT:-}"
-[ -z "$VLP16_HEIGHT" ] || [[ "$VLP16_HEIGHT" =~ ^[0-9]*\.?[0-9]+$ ]] ||
-  { echo "benchmark-sessions: VLP16_HEIGHT must be a height in metres" >&2; exit 2; }
 [[ "$LAPS" =~ ^[1-9][0-9]*$ ]] || { echo "benchmark-sessions: LAPS must be a whole number >= 1" >&2; exit 2; }
 # scenario N SEED LIDAR SCANS WAYPOINTS: one session's scenario file (stamps a day apart).
 scenario() {
@@ -59,7 +63,9 @@ scenario() {
     echo "speed_mps: 8"
     echo "start_stamp_s: $((1700000000 + 86400 * $1))"
     echo "route: {waypoints: $5, closed: true, turn_radius_m: 6}"
-    [ "$3" = vlp16 ] && [ -n "$VLP16_HEIGHT" ] && echo "sensor_height_m: $VLP16_HEIGHT"
+    if [ "$3" = vlp16 ] && [ -n "$VLP16_HEIGHT" ]; then
+      echo "sensor_height_m: $VLP16_HEIGHT"
+    fi
     if [ "$STATIC" != 1 ]; then
       echo "epoch: $(($1 - 1))"
       echo "traffic: {cars: 8, pedestrians: 20}"

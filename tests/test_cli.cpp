@@ -214,6 +214,18 @@ TEST(Cli, BadValuesAreUsageErrors)
 	expectUsageError(stderrOf("rasterslam-eval", "traj --gt " + d + "/scenario.yaml --est " + d +
 	                                                 "/scenario.yaml --max-dt -0.5"),
 	                 "rasterslam-eval traj", "expects a number >= 0, got '-0.5'");
+	// A closed interval holds its ends: past the check, each run fails on its input (no
+	// .bin files; a scenario that is no trajectory), exit 1, not on the value.
+	for (const auto& [prog, args] : std::vector<std::pair<std::string, std::string>>{
+	         {"kitti2rawlog", kitti + "--vertical-correction-deg 5"},
+	         {"kitti2rawlog", kitti + "--vertical-correction-deg -5"},
+	         {"rasterslam-eval",
+	          "traj --gt " + d + "/scenario.yaml --est " + d + "/scenario.yaml --max-dt 0"}})
+	{
+		const auto r = stderrOf(prog, args);
+		EXPECT_EQ(r.exitCode, 1) << args << "\n" << r.output;
+		EXPECT_FALSE(contains(r.output, "expects")) << args << "\n" << r.output;
+	}
 
 	const auto train = "train --images " + d + " -o " + d + "/v.bin ";
 	expectUsageError(stderrOf("rasterslam-vocab", train + "--branching 1"),

@@ -193,18 +193,39 @@ TEST(RasterGround, GroundBelowTheFixedBoundKeepsItsCandidates)
 
 TEST(RasterGround, RaisedBoundStopsAMetreAboveTheSensor)
 {
-	// Nothing below the sensor, a flat ceiling 3 m above it: the lowest dense layer is the
-	// ceiling, and taking it for the ground would drop every point below it as an outlier.
-	// The raised bound stops 1 m above the origin, so no plane is found (the rasterizer then
-	// takes sensor_height_m); a vehicle frame's ground (z = 0) is still reached.
-	std::vector<PointXYZI> pts;
+	// Nothing below the sensor, one flat surface above, and a table top 0.5 m up, 4-8 m ahead
+	// (441 points: no dense layer). A ceiling taken for the ground would drop every point
+	// below it as an outlier, and a bound raised under it would take the table for the
+	// ground: a layer reaching more than 1 m above the origin raises nothing, so no plane is
+	// found (the rasterizer then takes sensor_height_m): a ceiling at 3 m, and at 1.05 m (its
+	// 0.2 m layer tops out at 1.2 m). A surface whose layer stays within 1 m is reached:
+	// 0.85 m up (the bound raised to 1 m, not to 1.3) and a vehicle frame's ground (z = 0).
+	std::vector<PointXYZI> surface, table;
 	for (int i = -60; i <= 60; i++)
 		for (int j = -60; j <= 60; j++)
-			pts.push_back({0.25f * float(i), 0.25f * float(j), 3.0f, 0});
-	EXPECT_FALSE(raster::fitGroundPlane(pts, raster::GroundParams(), 1).valid);
-	for (auto& p : pts)
-		p.z = 0.0f;
-	const auto ground = raster::fitGroundPlane(pts, raster::GroundParams(), 1);
+			surface.push_back({0.25f * float(i), 0.25f * float(j), 0.0f, 0});
+	for (int i = 0; i <= 20; i++)
+		for (int j = -10; j <= 10; j++)
+			table.push_back({4.0f + 0.2f * float(i), 0.2f * float(j), 0.5f, 0});
+	const auto at = [&](float z, bool withTable)
+	{
+		auto pts = surface;
+		for (auto& p : pts)
+			p.z = z;
+		if (withTable)
+			pts.insert(pts.end(), table.begin(), table.end());
+		return raster::fitGroundPlane(pts, raster::GroundParams(), 1);
+	};
+	EXPECT_FALSE(at(3.0f, true).valid);
+	EXPECT_FALSE(at(1.05f, true).valid);
+	// The table alone (no ceiling) is the scan's lowest dense layer and is taken.
+	const auto tableAlone = raster::fitGroundPlane(table, raster::GroundParams(), 1);
+	ASSERT_TRUE(tableAlone.valid);
+	EXPECT_NEAR(tableAlone.d, -0.5, 1e-3);
+	const auto high = at(0.85f, false);
+	ASSERT_TRUE(high.valid);
+	EXPECT_NEAR(high.d, -0.85, 1e-3);
+	const auto ground = at(0.0f, false);
 	ASSERT_TRUE(ground.valid);
 	EXPECT_NEAR(ground.d, 0.0, 1e-3);
 	EXPECT_GT(ground.n.z(), 0.999f);

@@ -47,12 +47,13 @@ struct RaisedBound
 };
 
 /** The raised bound of candidates, or nullopt when the fixed one stands. Over an even sample
- *  of about 16,000 of the points 2.5 m (past the vehicle) to candidateMaxRange_m away
- *  horizontally and within 20 m of the frame's origin in height: when under 10 % of them lie
- *  below candidateMaxZ_m (a ground there holds far more: about half of a KITTI scan's), the
- *  bound becomes the top of the lowest 0.2 m layer of heights holding at least 30 % of the
- *  points of the fullest one, plus layerMargin_m, at most 1 m above the origin, when that top
- *  lies above the fixed bound. */
+ *  (every 3rd to 61st point, a prime stride: 16,000 to 49,000 points of a cloud of up to a
+ *  million) of the points 2.5 m (past the vehicle) to candidateMaxRange_m away horizontally
+ *  and within 20 m of the frame's origin in height: when under 10 % of them lie below
+ *  candidateMaxZ_m (a ground there holds far more: about half of a KITTI scan's), the bound
+ *  becomes the top of the lowest 0.2 m layer of heights holding at least 30 % of the points
+ *  of the fullest one, plus layerMargin_m, at most 1 m above the origin, when that top lies
+ *  above the fixed bound and not above 1 m (higher, the layer is a ceiling). */
 std::optional<RaisedBound> raisedBound(const std::vector<PointXYZI>& pts, const GroundParams& prm)
 {
 	constexpr double kBin_m = 0.2, kLow_m = -20, kHigh_m = 20, kNear_m = 2.5, kCap_m = 1.0;
@@ -86,9 +87,10 @@ std::optional<RaisedBound> raisedBound(const std::vector<PointXYZI>& pts, const 
 		if (10 * count[static_cast<std::size_t>(b)] >= 3 * most)
 		{
 			// Only a layer that reaches above the bound raises it (a sensor at 1.2-1.4 m, whose
-			// layer tops out just below, keeps its candidates).
+			// layer tops out just below, keeps its candidates), and only one below the cap: a
+			// layer higher up is a ceiling or a roof, not the ground (nor is what lies under it).
 			const double top = kLow_m + (b + 1) * kBin_m;
-			if (top <= prm.candidateMaxZ_m)
+			if (top <= prm.candidateMaxZ_m || top > kCap_m + 1e-9)
 				return std::nullopt;
 			return RaisedBound{std::min(kCap_m, top + prm.layerMargin_m), kNear_m};
 		}

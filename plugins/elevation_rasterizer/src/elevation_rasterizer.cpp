@@ -73,7 +73,7 @@ void ElevationRasterizer::initializeImpl(ParamReader& p)
 	p.requireAtLeast(r.maxHeight_m, 0, "max_height_m");
 	p.require(r.greyMax_m > r.greyMin_m, r.greyMax_m, "grey_max_m", "must be above grey_min_m");
 	p.requirePositive(g.candidateMaxRange_m, "ground_candidate_max_range_m");
-	p.requireRange(g.layerMargin_m, 0, 5, "ground_candidate_layer_margin_m");
+	p.requireRange(g.layerMargin_m, 0, 2, "ground_candidate_layer_margin_m");
 	p.requireAtLeast(g.maxCandidates, 3, "ground_max_candidates");  // a plane takes 3 points
 	p.requireAtLeast(g.iterations, 1, "ground_ransac_iterations");
 	p.requirePositive(g.inlierThreshold_m, "ground_inlier_threshold_m");

@@ -23,7 +23,8 @@ struct GroundParams
 	 *  ground there holds far more) and the top of their lowest dense layer of heights (0.2 m
 	 *  bins; the lowest holding 30 % of the fullest one's points) lies above it, the bound is
 	 *  raised to this much above that top, at most to 1 m above the origin, and candidates
-	 *  nearer than 2.5 m (the vehicle's own returns) are left out. Otherwise nothing changes.
+	 *  nearer than 2.5 m (the vehicle's own returns) are left out. A layer whose top lies
+	 *  more than 1 m above the origin (a ceiling) raises nothing. Otherwise nothing changes.
 	 *  0: the bound fixed. */
 	double layerMargin_m = 0.3;
 	/** The plane is fitted on at most this many candidates (an even subsample). */
