@@ -67,11 +67,15 @@ class OrbOdometry : public Odometry
 	/** Lost by the features: registers the scan's points on the previous scan's
 	 *  (point-to-plane ICP from each start; the converged one with the most overlap). None
 	 *  when none converges,
-	 *  overlaps too little, or the geometry leaves some motion free; in the last case
-	 *  `weak` (when given) receives the registration, for the features to confirm. */
+	 *  overlaps too little, or the geometry leaves some motion free; when it leaves one
+	 *  only, `weak` (when given) receives the registration, for the features to confirm. */
 	std::optional<Recovery> fallback(const Cloud& cur, const std::vector<Eigen::Isometry3d>& starts,
 	                                 std::string& why,
 	                                 std::optional<Recovery>* weak = nullptr) const;
+	/** Whether a registration leaves one motion weakly pinned and no more: the second
+	 *  smallest eigenvalue of its normal matrix, scaled as its constraint, reaches
+	 *  fallback_min_constraint (flat ground leaves three: x, y and yaw). */
+	bool oneWeakDirection(const features::IcpResult& icp, const Cloud& cur) const;
 
 	features::OrbParams orbParams_;
 	features::MatchParams match_;
@@ -205,7 +209,7 @@ void OrbOdometry::initializeImpl(ParamReader& p)
 	fallbackMinOverlap_ = p.getDouble("fallback_min_overlap", fallbackMinOverlap_);
 	fallbackMaxRange_m_ = p.getDouble("fallback_max_range_m", fallbackMaxRange_m_);
 	fallbackMinConstraint_ = p.getDouble("fallback_min_constraint", fallbackMinConstraint_);
-	fallbackConfirmInliers_ = p.getInt("fallback_confirm_inliers", 12);
+	fallbackConfirmInliers_ = p.getInt("fallback_confirm_inliers", fallbackConfirmInliers_);
 	p.require(fallbackConfirmInliers_ == 0 ||
 	              (fallbackConfirmInliers_ >= 3 && fallbackConfirmInliers_ <= 100000),
 	          fallbackConfirmInliers_, "fallback_confirm_inliers",
@@ -476,7 +480,7 @@ std::optional<OrbOdometry::Recovery> OrbOdometry::fallback(
 		return std::nullopt;
 	}
 	const bool pinned = icp.constraint >= fallbackMinConstraint_;
-	if (!pinned && !weak)
+	if (!pinned && (!weak || !oneWeakDirection(icp, cur)))
 	{
 		why = "degenerate geometry (constraint " + std::to_string(icp.constraint) +
 		      " below fallback_min_constraint)";
@@ -496,11 +500,33 @@ std::optional<OrbOdometry::Recovery> OrbOdometry::fallback(
 	if (!pinned)
 	{
 		*weak = rec;
-		why = "degenerate geometry (constraint " + std::to_string(icp.constraint) +
-		      " below fallback_min_constraint)";
+		why = "overlap " + std::to_string(icp.overlap) + ", constraint " +
+		      std::to_string(icp.constraint) + " below fallback_min_constraint";
 		return std::nullopt;
 	}
 	return rec;
+}
+
+bool OrbOdometry::oneWeakDirection(const features::IcpResult& icp, const Cloud& cur) const
+{
+	// The normal matrix scaled as the ICP's constraint is (rotation at the lever, per matched
+	// point): its second smallest eigenvalue must reach the bound the smallest misses.
+	double lever = icp_.lever_m;
+	if (!(lever > 0))
+	{
+		double r2 = 0;
+		for (const auto& q : cur)
+			r2 += q.cast<double>().squaredNorm();
+		lever = std::sqrt(r2 / static_cast<double>(std::max<std::size_t>(cur.size(), 1)));
+	}
+	if (icp.matched == 0 || !(lever > 0))
+		return false;
+	Eigen::Matrix<double, 6, 1> D;
+	D << 1, 1, 1, 1 / lever, 1 / lever, 1 / lever;
+	const Eigen::Matrix<double, 6, 6> Hs =
+	    D.asDiagonal() * icp.H * D.asDiagonal() / static_cast<double>(icp.matched);
+	const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(Hs);
+	return es.info() == Eigen::Success && es.eigenvalues()(1) >= fallbackMinConstraint_;
 }
 
 void OrbOdometry::advanceRefineMap(const Eigen::Isometry3d* T_old_new, const Cloud& pts)
@@ -637,6 +663,7 @@ OdometryResult OrbOdometry::process(const Scan& scan, const RasterFrame* raster)
 			    Eigen::AngleAxisd(diff.linear()).angle() <= kConfirmDeg * M_PI / 180)
 			{
 				recovery = std::move(weak);
+				est.inliers = check.inliers;  // reported as the scan's inliers
 				why += ", confirmed by " + std::to_string(check.inliers.size()) + " features";
 			}
 			else
